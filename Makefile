@@ -1,0 +1,27 @@
+# Every target sets itself up: Debian packages, then a catkin workspace under build/.
+# Debian's python3 must come first on PATH for catkin and roslaunch (a pyenv one may not).
+SHELL := /bin/bash
+export PATH := /usr/bin:/bin:$(PATH)
+
+WORKSPACE := $(CURDIR)/build/ws
+JOBS ?= 2
+
+.PHONY: deps build test demo bench clean
+
+deps:
+	@bash scripts/install_deps
+
+build: deps
+	@bash scripts/build_workspace "$(WORKSPACE)" "$(JOBS)"
+
+test: build
+	@bash scripts/run_tests "$(WORKSPACE)" "$(JOBS)"
+
+demo: build
+	@"$(WORKSPACE)/devel/lib/deformable_collision/core_demo"
+
+bench: build
+	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_shape_matching" --benchmark_counters_tabular=true
+
+clean:
+	rm -rf build

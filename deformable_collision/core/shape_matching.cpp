@@ -1,0 +1,737 @@
+#include "deformable_collision/core/shape_matching.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "deformable_collision/core/clustering.h"
+#include "deformable_collision/core/linear_algebra.h"
+
+namespace deformable_collision {
+namespace {
+
+template <DeformationMode Mode>
+constexpr int kFeatureCount = Mode == DeformationMode::kQuadratic ? 9 : 3;
+
+template <int K>
+Eigen::Matrix<double, K, 1> featuresOf(const Eigen::Vector3d& q) {
+  if constexpr (K == 9) {
+    return quadraticFeatures(q);
+  } else {
+    return q;
+  }
+}
+
+// The per-point kernels below are written on scalars: with Eigen expressions GCC left
+// small assignment loops out of line, which tripled the cost of a step.
+
+template <int K>
+inline void featureArray(const Eigen::Vector3d& q, double (&f)[K]) {
+  f[0] = q.x();
+  f[1] = q.y();
+  f[2] = q.z();
+  if constexpr (K == 9) {
+    f[3] = q.x() * q.x();
+    f[4] = q.y() * q.y();
+    f[5] = q.z() * q.z();
+    f[6] = q.x() * q.y();
+    f[7] = q.y() * q.z();
+    f[8] = q.z() * q.x();
+  }
+}
+
+/// Weighted sums over a cluster's points, taken relative to a reference point near the
+/// cluster (its last centre of mass) so that coordinates far from the origin lose no
+/// precision.
+template <int K>
+struct Moments {
+  double offset[3] = {};
+  double offset_features[3][K] = {};
+  double momentum[3] = {};
+  double angular_momentum[3] = {};
+  double second_moment[3][3] = {};
+};
+
+/// Sums slots [begin, end) of `cluster`; `weights` is null for exclusive slots, whose
+/// weight the caller applies. Momentum feeds the centre-of-mass prediction; spin terms feed
+/// the damping. The sums live in a local so that they stay in registers: through a
+/// reference they could alias the positions and would be stored on every point.
+template <int K, bool WithMomentum, bool WithSpin>
+Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end,
+                      const double* weights, const std::vector<Eigen::Vector3d>& positions,
+                      const std::vector<Eigen::Vector3d>& velocities,
+                      const Eigen::Vector3d& reference) {
+  Moments<K> m;
+  for (std::size_t j = begin; j < end; ++j) {
+    const std::uint32_t i = cluster.points[j];
+    const double w = weights != nullptr ? weights[j - begin] : 1.0;
+    const double p[3] = {positions[i].x() - reference.x(), positions[i].y() - reference.y(),
+                         positions[i].z() - reference.z()};
+    double f[K];
+    featureArray<K>(cluster.rest_offsets[j], f);
+    for (int r = 0; r < 3; ++r) {
+      const double wp = w * p[r];
+      m.offset[r] += wp;
+      for (int c = 0; c < K; ++c) m.offset_features[r][c] += wp * f[c];
+    }
+    if constexpr (WithMomentum) {
+      const Eigen::Vector3d& v = velocities[i];
+      for (int r = 0; r < 3; ++r) m.momentum[r] += w * v[r];
+      if constexpr (WithSpin) {
+        m.angular_momentum[0] += w * (p[1] * v.z() - p[2] * v.y());
+        m.angular_momentum[1] += w * (p[2] * v.x() - p[0] * v.z());
+        m.angular_momentum[2] += w * (p[0] * v.y() - p[1] * v.x());
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) m.second_moment[r][c] += w * p[r] * p[c];
+        }
+      }
+    }
+  }
+  return m;
+}
+
+/// Moments of the whole cluster, in kg-weighted units.
+template <int K, bool WithMomentum, bool WithSpin>
+Moments<K> clusterMoments(const Cluster& cluster, double point_mass_kg,
+                          const std::vector<Eigen::Vector3d>& positions,
+                          const std::vector<Eigen::Vector3d>& velocities,
+                          const Eigen::Vector3d& reference) {
+  Moments<K> exclusive = accumulate<K, WithMomentum, WithSpin>(
+      cluster, 0, cluster.exclusive_count, nullptr, positions, velocities, reference);
+  const Moments<K> shared = accumulate<K, WithMomentum, WithSpin>(
+      cluster, cluster.exclusive_count, cluster.points.size(), cluster.shared_weights_kg.data(),
+      positions, velocities, reference);
+  for (int r = 0; r < 3; ++r) {
+    exclusive.offset[r] = point_mass_kg * exclusive.offset[r] + shared.offset[r];
+    exclusive.momentum[r] = point_mass_kg * exclusive.momentum[r] + shared.momentum[r];
+    exclusive.angular_momentum[r] =
+        point_mass_kg * exclusive.angular_momentum[r] + shared.angular_momentum[r];
+    for (int c = 0; c < K; ++c) {
+      exclusive.offset_features[r][c] =
+          point_mass_kg * exclusive.offset_features[r][c] + shared.offset_features[r][c];
+    }
+    for (int c = 0; c < 3; ++c) {
+      exclusive.second_moment[r][c] =
+          point_mass_kg * exclusive.second_moment[r][c] + shared.second_moment[r][c];
+    }
+  }
+  return exclusive;
+}
+
+/// g = T f + t for one point, on scalars.
+template <int K>
+inline void goalOf(const double (&transform)[3][K], const double (&translation)[3],
+                   const Eigen::Vector3d& rest_offset, double (&goal)[3]) {
+  double f[K];
+  featureArray<K>(rest_offset, f);
+  for (int r = 0; r < 3; ++r) {
+    double g = translation[r];
+    for (int c = 0; c < K; ++c) g += transform[r][c] * f[c];
+    goal[r] = g;
+  }
+}
+
+/// Registers a cluster on its moments, taken about `reference`: moves the centre of mass,
+/// updates the warm-started rotation and returns the least-squares transform (R alone for
+/// a rigid cluster).
+template <DeformationMode Mode, int K = kFeatureCount<Mode>>
+Eigen::Matrix<double, 3, K> fitCluster(const Cluster& cluster, const Moments<K>& m,
+                                       const Eigen::Vector3d& shift,
+                                       ClusterDeformation& deformation) {
+  const double mass = cluster.total_weight_kg;
+  Eigen::Matrix<double, 3, K> moment_pq;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < K; ++c) {
+      moment_pq(r, c) = m.offset_features[r][c] - mass * shift[r] * cluster.mean_features[c];
+    }
+  }
+  extractRotation(moment_pq.template leftCols<3>(), deformation.rotation);
+  deformation.center_of_mass += shift;
+  const Eigen::Matrix3d rotation = deformation.rotation.toRotationMatrix();
+  if constexpr (Mode == DeformationMode::kRigid) {
+    return rotation;
+  } else {
+    return moment_pq * cluster.moment_inverse.template topLeftCorner<K, K>() +
+           rotation * cluster.null_completion.template leftCols<K>();
+  }
+}
+
+template <int K>
+void setGoalTransform(const Cluster& cluster, const Eigen::Matrix<double, 3, K>& transform,
+                      ClusterDeformation& deformation) {
+  deformation.transform.setZero();
+  deformation.transform.template leftCols<K>() = transform;
+  deformation.translation =
+      deformation.center_of_mass - transform * cluster.mean_features.template head<K>();
+}
+
+/// A cluster's goal transform as plain arrays for the per-point kernels.
+template <int K>
+struct GoalKernel {
+  double transform[3][K];
+  double translation[3];
+  explicit GoalKernel(const ClusterDeformation& deformation) {
+    for (int r = 0; r < 3; ++r) {
+      translation[r] = deformation.translation[r];
+      for (int c = 0; c < K; ++c) transform[r][c] = deformation.transform(r, c);
+    }
+  }
+  void goal(const Eigen::Vector3d& rest_offset, double (&out)[3]) const {
+    goalOf<K>(transform, translation, rest_offset, out);
+  }
+};
+
+std::string describe(const char* field, double value, const char* requirement) {
+  std::ostringstream out;
+  out << "ShapeMatchingConfig." << field << " = " << value << " " << requirement;
+  return out.str();
+}
+
+void validate(const std::vector<Eigen::Vector3d>& rest_points, const ShapeMatchingConfig& c) {
+  if (rest_points.empty()) throw std::invalid_argument("rest shape has no points");
+  for (std::size_t i = 0; i < rest_points.size(); ++i) {
+    if (!rest_points[i].allFinite()) {
+      std::ostringstream out;
+      out << "rest point " << i << " = (" << rest_points[i].transpose() << ") is not finite";
+      throw std::invalid_argument(out.str());
+    }
+  }
+  const auto in_unit_interval = [](double v) { return v >= 0.0 && v <= 1.0; };
+  if (!(c.mass_kg > 0.0) || !std::isfinite(c.mass_kg)) {
+    throw std::invalid_argument(describe("mass_kg", c.mass_kg, "must be finite and > 0"));
+  }
+  if (!in_unit_interval(c.stiffness)) {
+    throw std::invalid_argument(describe("stiffness", c.stiffness, "is outside [0, 1]"));
+  }
+  if (!in_unit_interval(c.beta)) {
+    throw std::invalid_argument(describe("beta", c.beta, "is outside [0, 1]"));
+  }
+  if (!in_unit_interval(c.damping)) {
+    throw std::invalid_argument(describe("damping", c.damping, "is outside [0, 1]"));
+  }
+  if (c.clusters < 1 || static_cast<std::size_t>(c.clusters) > rest_points.size()) {
+    std::ostringstream out;
+    out << "ShapeMatchingConfig.clusters = " << c.clusters << " must be in [1, "
+        << rest_points.size() << "] (the number of points)";
+    throw std::invalid_argument(out.str());
+  }
+  if (!(c.cluster_overlap_ratio >= 0.0) || !std::isfinite(c.cluster_overlap_ratio)) {
+    throw std::invalid_argument(
+        describe("cluster_overlap_ratio", c.cluster_overlap_ratio, "must be finite and >= 0"));
+  }
+}
+
+/// Pseudo-inverse of a feature moment matrix into the top-left block of `inverse`, and the
+/// completion N that lets unspanned directions follow the rotation (see Cluster).
+template <int K>
+void invertFeatureMoment(const Eigen::Matrix<double, K, K>& moment, double radius_m,
+                         Eigen::Matrix<double, 9, 9>& inverse,
+                         Eigen::Matrix<double, 3, 9>& completion) {
+  inverse.setZero();
+  completion.setZero();
+  if constexpr (K == 3) {
+    const auto result = pseudoInverseSymmetric<3>(moment);
+    inverse.topLeftCorner<3, 3>() = result.inverse;
+    completion.leftCols<3>() = result.null_projector;
+  } else {
+    // Linear and quadratic features differ in units by a length; scaling them by the
+    // cluster radius keeps the eigenvalue cut-off meaningful from 1e-4 m to 1e4 m.
+    const double s = radius_m > 0.0 ? radius_m : 1.0;
+    Eigen::Matrix<double, 9, 1> unscale;
+    unscale << 1 / s, 1 / s, 1 / s, 1 / (s * s), 1 / (s * s), 1 / (s * s), 1 / (s * s),
+        1 / (s * s), 1 / (s * s);
+    const Eigen::Matrix<double, 9, 9> scaled =
+        unscale.asDiagonal() * moment * unscale.asDiagonal();
+    const auto result = pseudoInverseSymmetric<9>(scaled);
+    inverse = unscale.asDiagonal() * result.inverse * unscale.asDiagonal();
+    completion = s * result.null_projector.topRows<3>() * unscale.asDiagonal();
+  }
+}
+
+double slotWeightKg(const Cluster& cluster, std::size_t slot, double point_mass_kg) {
+  return slot < cluster.exclusive_count ? point_mass_kg
+                                        : cluster.shared_weights_kg[slot - cluster.exclusive_count];
+}
+
+/// Fills the rest-shape moments of a cluster whose points, weights and offsets are set.
+void precomputeMoments(Cluster& cluster, DeformationMode mode, double point_mass_kg) {
+  double second_moment = 0.0;
+  Eigen::Matrix<double, 9, 1> feature_sum = Eigen::Matrix<double, 9, 1>::Zero();
+  for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+    feature_sum += slotWeightKg(cluster, j, point_mass_kg) * quadraticFeatures(cluster.rest_offsets[j]);
+    second_moment += slotWeightKg(cluster, j, point_mass_kg) * cluster.rest_offsets[j].squaredNorm();
+  }
+  cluster.mean_features = feature_sum / cluster.total_weight_kg;
+
+  if (mode == DeformationMode::kLinear) {
+    Eigen::Matrix3d moment = Eigen::Matrix3d::Zero();
+    for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+      const Eigen::Vector3d q = cluster.rest_offsets[j] - cluster.mean_features.head<3>();
+      moment.noalias() += slotWeightKg(cluster, j, point_mass_kg) * q * q.transpose();
+    }
+    invertFeatureMoment<3>(moment, 1.0, cluster.moment_inverse, cluster.null_completion);
+  } else if (mode == DeformationMode::kQuadratic) {
+    Eigen::Matrix<double, 9, 9> moment = Eigen::Matrix<double, 9, 9>::Zero();
+    for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+      const Eigen::Matrix<double, 9, 1> f =
+          quadraticFeatures(cluster.rest_offsets[j]) - cluster.mean_features;
+      moment.noalias() += slotWeightKg(cluster, j, point_mass_kg) * f * f.transpose();
+    }
+    invertFeatureMoment<9>(moment, std::sqrt(second_moment / cluster.total_weight_kg),
+                           cluster.moment_inverse, cluster.null_completion);
+  }
+}
+
+/// Fits a cluster on the slots whose points were observed (`seen`), with the moment
+/// matrices of that subset: points left at stale positions would drag the fit. A cluster
+/// with no observed point keeps its last transform.
+template <DeformationMode Mode, typename Seen, int K = kFeatureCount<Mode>>
+void fitObservedSubset(const Cluster& cluster, double point_mass_kg,
+                       const std::vector<Eigen::Vector3d>& positions, const Seen& seen,
+                       ClusterDeformation& deformation) {
+  using Features = Eigen::Matrix<double, K, 1>;
+  const Eigen::Vector3d reference = deformation.center_of_mass;
+  double mass = 0.0;
+  Features feature_sum = Features::Zero();
+  Eigen::Vector3d offset_sum = Eigen::Vector3d::Zero();
+  for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+    if (!seen(cluster.points[j])) continue;
+    const double w = slotWeightKg(cluster, j, point_mass_kg);
+    mass += w;
+    feature_sum += w * featuresOf<K>(cluster.rest_offsets[j]);
+    offset_sum += w * (positions[cluster.points[j]] - reference);
+  }
+  if (!(mass > 0.0)) return;
+  const Features mean_features = feature_sum / mass;
+  const Eigen::Vector3d center = reference + offset_sum / mass;
+  Eigen::Matrix<double, 3, K> moment_pq = Eigen::Matrix<double, 3, K>::Zero();
+  Eigen::Matrix<double, K, K> moment_qq = Eigen::Matrix<double, K, K>::Zero();
+  double second_moment = 0.0;
+  for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+    if (!seen(cluster.points[j])) continue;
+    const double w = slotWeightKg(cluster, j, point_mass_kg);
+    const Features f = featuresOf<K>(cluster.rest_offsets[j]) - mean_features;
+    moment_pq.noalias() += w * (positions[cluster.points[j]] - center) * f.transpose();
+    moment_qq.noalias() += w * f * f.transpose();
+    second_moment += w * f.template head<3>().squaredNorm();
+  }
+  extractRotation(moment_pq.template leftCols<3>(), deformation.rotation);
+  const Eigen::Matrix3d rotation = deformation.rotation.toRotationMatrix();
+  Eigen::Matrix<double, 3, K> transform;
+  if constexpr (Mode == DeformationMode::kRigid) {
+    transform = rotation;
+  } else {
+    Eigen::Matrix<double, 9, 9> inverse;
+    Eigen::Matrix<double, 3, 9> completion;
+    invertFeatureMoment<K>(moment_qq, std::sqrt(second_moment / mass), inverse, completion);
+    transform = moment_pq * inverse.template topLeftCorner<K, K>() +
+                rotation * completion.template leftCols<K>();
+  }
+  deformation.transform.setZero();
+  deformation.transform.template leftCols<K>() = transform;
+  deformation.translation = center - transform * mean_features;
+  deformation.center_of_mass =
+      deformation.translation + transform * cluster.mean_features.template head<K>();
+}
+
+/// Linear transform to a goal: the (volume-preserving) fit blended with the rotation.
+/// The fit is taken as R S (polar form), and the eigenvalues of the stretch S are clamped
+/// from below at a tenth of the largest before the volume is normalised: a flattened or
+/// inverted fit then yields a proper, bounded goal that varies continuously with the
+/// points. Dividing by cbrt(det A) as printed, with a switch to R at det <= 0, lets an
+/// overshooting object pass through flat into inversion, and the goal's jumps there feed
+/// energy in (measured: an undamped cube at beta 0.7 grew 700-fold in 3000 steps).
+Eigen::Matrix3d linearGoalTransform(const Eigen::Matrix3d& fit,
+                                    const Eigen::Quaterniond& rotation, double beta,
+                                    bool preserve_volume) {
+  const Eigen::Matrix3d r = rotation.toRotationMatrix();
+  if (!preserve_volume) return beta * fit + (1.0 - beta) * r;
+  // R rotates A_pq = A A_qq; the stretch of A itself needs A's own polar rotation, which is
+  // close to R, so R is the warm start.
+  Eigen::Quaterniond fit_rotation = rotation;
+  extractRotation(fit, fit_rotation);
+  const Eigen::Matrix3d fit_r = fit_rotation.toRotationMatrix();
+  const Eigen::Matrix3d unsymmetric_stretch = fit_r.transpose() * fit;
+  const Eigen::Matrix3d stretch = 0.5 * (unsymmetric_stretch + unsymmetric_stretch.transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+  solver.computeDirect(stretch);
+  Eigen::Vector3d principal = solver.eigenvalues();
+  const double largest = principal.cwiseAbs().maxCoeff();
+  Eigen::Matrix3d volume_preserving = r;
+  if (largest > 0.0 && std::isfinite(largest)) {
+    principal = principal.cwiseMax(0.1 * largest);
+    principal /= std::cbrt(principal.prod());
+    volume_preserving =
+        fit_r * solver.eigenvectors() * principal.asDiagonal() * solver.eigenvectors().transpose();
+  }
+  return beta * volume_preserving + (1.0 - beta) * r;
+}
+
+}  // namespace
+
+std::optional<DeformationMode> parseDeformationMode(const std::string& name) {
+  if (name == "rigid") return DeformationMode::kRigid;
+  if (name == "linear") return DeformationMode::kLinear;
+  if (name == "quadratic") return DeformationMode::kQuadratic;
+  return std::nullopt;
+}
+
+const char* toString(DeformationMode mode) {
+  switch (mode) {
+    case DeformationMode::kRigid:
+      return "rigid";
+    case DeformationMode::kLinear:
+      return "linear";
+    case DeformationMode::kQuadratic:
+      return "quadratic";
+  }
+  return "unknown";
+}
+
+ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
+                                     const ShapeMatchingConfig& config)
+    : config_(config) {
+  validate(rest_points, config);
+  const std::size_t n = rest_points.size();
+  point_mass_kg_ = config.mass_kg / static_cast<double>(n);
+  rest_positions_ = std::move(rest_points);
+  positions_ = rest_positions_;
+  velocities_.assign(n, Eigen::Vector3d::Zero());
+  goal_sums_.assign(n, Eigen::Vector3d::Zero());
+  target_velocity_sums_.assign(n, Eigen::Vector3d::Zero());
+
+  auto memberships =
+      partitionIntoClusters(rest_positions_, config.clusters, config.cluster_overlap_ratio);
+  membership_counts_.assign(n, 0);
+  for (const auto& members : memberships) {
+    for (const auto i : members) ++membership_counts_[i];
+  }
+  for (std::uint32_t i = 0; i < n; ++i) {
+    if (membership_counts_[i] > 1) shared_points_.push_back(i);
+  }
+
+  clusters_.resize(memberships.size());
+  for (std::size_t k = 0; k < memberships.size(); ++k) {
+    Cluster& cluster = clusters_[k];
+    const auto& members = memberships[k];
+    for (const auto i : members) {
+      if (membership_counts_[i] == 1) cluster.points.push_back(i);
+    }
+    cluster.exclusive_count = cluster.points.size();
+    for (const auto i : members) {
+      if (membership_counts_[i] > 1) {
+        cluster.points.push_back(i);
+        cluster.shared_weights_kg.push_back(point_mass_kg_ / membership_counts_[i]);
+      }
+    }
+    const std::size_t size = cluster.points.size();
+    // Summing offsets from one of the cluster's points keeps x_cm^0 exact far from the origin.
+    const Eigen::Vector3d anchor = rest_positions_[cluster.points.front()];
+    Eigen::Vector3d weighted_offset_sum = Eigen::Vector3d::Zero();
+    for (std::size_t j = 0; j < size; ++j) {
+      const double weight = slotWeightKg(cluster, j, point_mass_kg_);
+      cluster.total_weight_kg += weight;
+      weighted_offset_sum += weight * (rest_positions_[cluster.points[j]] - anchor);
+    }
+    cluster.rest_center_of_mass = anchor + weighted_offset_sum / cluster.total_weight_kg;
+    cluster.rest_offsets.resize(size);
+    for (std::size_t j = 0; j < size; ++j) {
+      cluster.rest_offsets[j] = rest_positions_[cluster.points[j]] - cluster.rest_center_of_mass;
+    }
+    precomputeMoments(cluster, config.mode, point_mass_kg_);
+  }
+
+  deformations_.resize(clusters_.size());
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    deformations_[k].center_of_mass = clusters_[k].rest_center_of_mass;
+  }
+  cluster_momenta_.resize(clusters_.size());
+  cluster_motion_.assign(clusters_.size(), Eigen::Vector3d::Zero());
+  setPositions(positions_);
+}
+
+void ShapeMatchingBody::step(double dt_s, const Eigen::Vector3d& acceleration_mps2) {
+  if (!(dt_s > 0.0) || !std::isfinite(dt_s)) {
+    throw std::invalid_argument("time step dt_s = " + std::to_string(dt_s) +
+                                " must be finite and > 0");
+  }
+  if (!acceleration_mps2.allFinite()) {
+    throw std::invalid_argument("external acceleration is not finite");
+  }
+  const bool damped = config_.damping > 0.0;
+  switch (config_.mode) {
+    case DeformationMode::kRigid:
+      damped ? simulate<DeformationMode::kRigid, true>(dt_s, acceleration_mps2)
+             : simulate<DeformationMode::kRigid, false>(dt_s, acceleration_mps2);
+      break;
+    case DeformationMode::kLinear:
+      damped ? simulate<DeformationMode::kLinear, true>(dt_s, acceleration_mps2)
+             : simulate<DeformationMode::kLinear, false>(dt_s, acceleration_mps2);
+      break;
+    case DeformationMode::kQuadratic:
+      damped ? simulate<DeformationMode::kQuadratic, true>(dt_s, acceleration_mps2)
+             : simulate<DeformationMode::kQuadratic, false>(dt_s, acceleration_mps2);
+      break;
+  }
+}
+
+std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observed_points) {
+  if (observed_points.size() != positions_.size()) {
+    throw std::invalid_argument("tracked cloud has " + std::to_string(observed_points.size()) +
+                                " points, the object has " + std::to_string(positions_.size()));
+  }
+  std::size_t unobserved = 0;
+  for (std::size_t i = 0; i < positions_.size(); ++i) {
+    if (observed_points[i].allFinite()) {
+      positions_[i] = observed_points[i];
+    } else {
+      ++unobserved;
+    }
+  }
+  const auto* fill_in = unobserved > 0 ? &observed_points : nullptr;
+  switch (config_.mode) {
+    case DeformationMode::kRigid:
+      registerPositions<DeformationMode::kRigid>(fill_in);
+      break;
+    case DeformationMode::kLinear:
+      registerPositions<DeformationMode::kLinear>(fill_in);
+      break;
+    case DeformationMode::kQuadratic:
+      registerPositions<DeformationMode::kQuadratic>(fill_in);
+      break;
+  }
+  return unobserved;
+}
+
+void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positions) {
+  if (positions.size() != positions_.size()) {
+    throw std::invalid_argument("got " + std::to_string(positions.size()) +
+                                " positions for an object of " +
+                                std::to_string(positions_.size()) + " points");
+  }
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    if (!positions[i].allFinite()) {
+      throw std::invalid_argument("position " + std::to_string(i) + " is not finite");
+    }
+  }
+  track(positions);
+}
+
+
+template <DeformationMode Mode, bool Damped>
+void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2) {
+  constexpr int K = kFeatureCount<Mode>;
+  const double pull = config_.stiffness / dt_s;
+  const double damping = config_.damping;
+  const double kick[3] = {dt_s * acceleration_mps2.x(), dt_s * acceleration_mps2.y(),
+                          dt_s * acceleration_mps2.z()};
+
+  // Every cluster is fitted on the positions at the start of the step, before any point moves.
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    const Cluster& cluster = clusters_[k];
+    ClusterDeformation& deformation = deformations_[k];
+    const auto m = clusterMoments<K, true, Damped>(cluster, point_mass_kg_, positions_,
+                                                   velocities_, deformation.center_of_mass);
+    const double mass = cluster.total_weight_kg;
+    const Eigen::Vector3d shift = Eigen::Vector3d(m.offset[0], m.offset[1], m.offset[2]) / mass;
+    const auto fit = fitCluster<Mode>(cluster, m, shift, deformation);
+    const Eigen::Matrix3d rotation = deformation.rotation.toRotationMatrix();
+    if constexpr (Mode == DeformationMode::kRigid) {
+      setGoalTransform<K>(cluster, fit, deformation);
+    } else if constexpr (Mode == DeformationMode::kLinear) {
+      setGoalTransform<K>(cluster, linearGoalTransform(fit, deformation.rotation, config_.beta, config_.preserve_volume), deformation);
+    } else {
+      Eigen::Matrix<double, 3, K> blended = config_.beta * fit;
+      blended.template leftCols<3>() += (1.0 - config_.beta) * rotation;
+      setGoalTransform<K>(cluster, blended, deformation);
+    }
+    const Eigen::Vector3d velocity =
+        Eigen::Vector3d(m.momentum[0], m.momentum[1], m.momentum[2]) / mass;
+    // Goals conserve the cluster's momentum, so its centre of mass moves by this much in the
+    // step; measuring the goal deviation in the moved frame keeps the bound free of the
+    // object's own motion.
+    cluster_motion_[k] = dt_s * (velocity + Eigen::Vector3d(kick[0], kick[1], kick[2]));
+    if constexpr (Damped) {
+      ClusterMomenta& momenta = cluster_momenta_[k];
+      momenta.momentum = mass * velocity;
+      momenta.angular_momentum =
+          Eigen::Vector3d(m.angular_momentum[0], m.angular_momentum[1], m.angular_momentum[2]) -
+          mass * shift.cross(velocity);
+      Eigen::Matrix3d second_moment;
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) second_moment(r, c) = m.second_moment[r][c];
+      }
+      second_moment -= mass * shift * shift.transpose();
+      momenta.inertia = second_moment.trace() * Eigen::Matrix3d::Identity() - second_moment;
+    }
+  }
+
+  // Damping keeps the rigid motion of the whole object, not of each cluster: clusters
+  // turning against each other (bending) are non-rigid motion and must decay too.
+  Eigen::Vector3d object_center = Eigen::Vector3d::Zero();
+  Eigen::Vector3d object_velocity = Eigen::Vector3d::Zero();
+  Eigen::Vector3d object_spin = Eigen::Vector3d::Zero();
+  if constexpr (Damped) {
+    double mass = 0.0;
+    Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+    for (std::size_t k = 0; k < clusters_.size(); ++k) {
+      mass += clusters_[k].total_weight_kg;
+      object_center += clusters_[k].total_weight_kg *
+                       (deformations_[k].center_of_mass - deformations_[0].center_of_mass);
+      momentum += cluster_momenta_[k].momentum;
+    }
+    object_center = deformations_[0].center_of_mass + object_center / mass;
+    object_velocity = momentum / mass;
+    Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+    for (std::size_t k = 0; k < clusters_.size(); ++k) {
+      const double cluster_mass = clusters_[k].total_weight_kg;
+      const Eigen::Vector3d arm = deformations_[k].center_of_mass - object_center;
+      angular_momentum += cluster_momenta_[k].angular_momentum +
+                          arm.cross(cluster_momenta_[k].momentum);
+      inertia += cluster_momenta_[k].inertia +
+                 cluster_mass * (arm.squaredNorm() * Eigen::Matrix3d::Identity() -
+                                 arm * arm.transpose());
+    }
+    object_spin = pseudoInverseSymmetric<3>(inertia).inverse * angular_momentum;
+  }
+
+  const auto integrate = [&](double* x, double* v, const double (&goal)[3],
+                             const double (&target_velocity)[3]) {
+    for (int r = 0; r < 3; ++r) {
+      if constexpr (Damped) v[r] += damping * (target_velocity[r] - v[r]);
+      v[r] += pull * (goal[r] - x[r]) + kick[r];
+      x[r] += dt_s * v[r];
+    }
+  };
+  const auto rigidVelocity = [&](const Eigen::Vector3d& x, double (&out)[3]) {
+    const Eigen::Vector3d velocity = object_velocity + object_spin.cross(x - object_center);
+    for (int r = 0; r < 3; ++r) out[r] = velocity[r];
+  };
+  const auto deviationSquared = [](const double (&goal)[3], const Eigen::Vector3d& motion,
+                                   const Eigen::Vector3d& x) {
+    double sum = 0.0;
+    for (int r = 0; r < 3; ++r) {
+      const double e = goal[r] + motion[r] - x[r];
+      sum += e * e;
+    }
+    return sum;
+  };
+
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    const Cluster& cluster = clusters_[k];
+    const GoalKernel<K> kernel(deformations_[k]);
+    const Eigen::Vector3d& motion = cluster_motion_[k];
+    double deviation_squared = 0.0;
+    double goal[3];
+    double target_velocity[3] = {};
+    for (std::size_t j = 0; j < cluster.exclusive_count; ++j) {
+      Eigen::Vector3d& x = positions_[cluster.points[j]];
+      kernel.goal(cluster.rest_offsets[j], goal);
+      if constexpr (Damped) rigidVelocity(x, target_velocity);
+      integrate(x.data(), velocities_[cluster.points[j]].data(), goal, target_velocity);
+      deviation_squared = std::max(deviation_squared, deviationSquared(goal, motion, x));
+    }
+    for (std::size_t j = cluster.exclusive_count; j < cluster.points.size(); ++j) {
+      const std::uint32_t i = cluster.points[j];
+      kernel.goal(cluster.rest_offsets[j], goal);
+      goal_sums_[i] += Eigen::Vector3d(goal[0], goal[1], goal[2]);
+      if constexpr (Damped) {
+        rigidVelocity(positions_[i], target_velocity);
+        target_velocity_sums_[i] +=
+            Eigen::Vector3d(target_velocity[0], target_velocity[1], target_velocity[2]);
+      }
+    }
+    deformations_[k].goal_deviation_bound_m = deviation_squared;
+  }
+
+  for (const std::uint32_t i : shared_points_) {
+    const double share = 1.0 / membership_counts_[i];
+    double goal[3];
+    double target_velocity[3];
+    for (int r = 0; r < 3; ++r) {
+      goal[r] = share * goal_sums_[i][r];
+      target_velocity[r] = share * target_velocity_sums_[i][r];
+    }
+    integrate(positions_[i].data(), velocities_[i].data(), goal, target_velocity);
+    goal_sums_[i].setZero();
+    target_velocity_sums_[i].setZero();
+  }
+
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    const Cluster& cluster = clusters_[k];
+    ClusterDeformation& deformation = deformations_[k];
+    const GoalKernel<K> kernel(deformation);
+    const Eigen::Vector3d& motion = cluster_motion_[k];
+    double deviation_squared = deformation.goal_deviation_bound_m;
+    double goal[3];
+    for (std::size_t j = cluster.exclusive_count; j < cluster.points.size(); ++j) {
+      kernel.goal(cluster.rest_offsets[j], goal);
+      deviation_squared =
+          std::max(deviation_squared, deviationSquared(goal, motion, positions_[cluster.points[j]]));
+    }
+    deformation.goal_deviation_bound_m = std::sqrt(deviation_squared);
+    deformation.center_of_mass += motion;
+    deformation.translation += motion;
+  }
+}
+
+template <DeformationMode Mode>
+void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* observed) {
+  constexpr int K = kFeatureCount<Mode>;
+  const auto seen = [observed](std::uint32_t i) {
+    return observed == nullptr || (*observed)[i].allFinite();
+  };
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    const Cluster& cluster = clusters_[k];
+    ClusterDeformation& deformation = deformations_[k];
+    const bool complete =
+        std::all_of(cluster.points.begin(), cluster.points.end(), seen);
+    if (complete) {
+      const auto m = clusterMoments<K, false, false>(cluster, point_mass_kg_, positions_,
+                                                     velocities_, deformation.center_of_mass);
+      const Eigen::Vector3d shift =
+          Eigen::Vector3d(m.offset[0], m.offset[1], m.offset[2]) / cluster.total_weight_kg;
+      setGoalTransform<K>(cluster, fitCluster<Mode>(cluster, m, shift, deformation), deformation);
+    } else {
+      fitObservedSubset<Mode>(cluster, point_mass_kg_, positions_, seen, deformation);
+    }
+  }
+
+  double goal[3];
+  if (observed != nullptr) {
+    for (std::size_t k = 0; k < clusters_.size(); ++k) {
+      const Cluster& cluster = clusters_[k];
+      const GoalKernel<K> kernel(deformations_[k]);
+      for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+        const std::uint32_t i = cluster.points[j];
+        if (seen(i)) continue;
+        kernel.goal(cluster.rest_offsets[j], goal);
+        goal_sums_[i] += Eigen::Vector3d(goal[0], goal[1], goal[2]);
+      }
+    }
+    for (std::size_t i = 0; i < positions_.size(); ++i) {
+      if (seen(static_cast<std::uint32_t>(i))) continue;
+      positions_[i] = goal_sums_[i] / membership_counts_[i];
+      goal_sums_[i].setZero();
+    }
+  }
+  for (auto& v : velocities_) v.setZero();
+
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    const Cluster& cluster = clusters_[k];
+    const GoalKernel<K> kernel(deformations_[k]);
+    double deviation_squared = 0.0;
+    for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+      kernel.goal(cluster.rest_offsets[j], goal);
+      const Eigen::Vector3d& x = positions_[cluster.points[j]];
+      const Eigen::Vector3d e(goal[0] - x.x(), goal[1] - x.y(), goal[2] - x.z());
+      deviation_squared = std::max(deviation_squared, e.squaredNorm());
+    }
+    deformations_[k].goal_deviation_bound_m = std::sqrt(deviation_squared);
+  }
+}
+
+}  // namespace deformable_collision

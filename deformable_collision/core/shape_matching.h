@@ -1,0 +1,147 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace deformable_collision {
+
+/// The deformation a cluster's goal transform can express (Mueller et al. 2005).
+enum class DeformationMode { kRigid, kLinear, kQuadratic };
+
+/// "rigid", "linear" or "quadratic"; std::nullopt for anything else.
+std::optional<DeformationMode> parseDeformationMode(const std::string& name);
+const char* toString(DeformationMode mode);
+
+/// Shape-matching parameters of one object. Units are SI and named in the field.
+struct ShapeMatchingConfig {
+  DeformationMode mode = DeformationMode::kLinear;
+  int clusters = 1;                    ///< Number of shape-matching clusters, in [1, points].
+  double cluster_overlap_ratio = 0.1;  ///< Seam shared by neighbouring clusters, see partitionIntoClusters.
+  double stiffness = 0.5;              ///< alpha in [0, 1]: fraction of the way to the goal per step.
+  double beta = 0.5;                   ///< [0, 1]: blend of the fitted transform with its rotation.
+  /// [0, 1]: fraction of the velocity relative to the object's rigid motion removed per
+  /// step (momentum is conserved). Volume preservation is not a conservative force and
+  /// needs about 0.1 to keep energy bounded; the other goals are stable undamped.
+  double damping = 0.1;
+  /// Linear mode: normalise the fitted A to unit determinant (Mueller et al. 2005).
+  /// Off, the goal force derives from a potential and the undamped scheme keeps energy bounded.
+  bool preserve_volume = true;
+  double mass_kg = 1.0;                ///< Total object mass (> 0), split equally among its points.
+};
+
+/// Rest-shape data of one cluster, fixed at construction.
+struct Cluster {
+  /// Indices of the cluster's points: those it holds alone first (`exclusive_count` of
+  /// them), then those it shares with other clusters; each part ascending.
+  std::vector<std::uint32_t> points;
+  std::size_t exclusive_count = 0;
+  std::vector<Eigen::Vector3d> rest_offsets;  ///< q_i = x_i^0 - x_cm^0, same order as `points`.
+  /// Mass a shared point lends this cluster: its mass over the number of clusters holding it,
+  /// which keeps momentum conserved when shared points take the mean of their goals.
+  /// Indexed by slot - exclusive_count; an exclusive point lends its whole mass.
+  std::vector<double> shared_weights_kg;
+  Eigen::Vector3d rest_center_of_mass = Eigen::Vector3d::Zero();  ///< x_cm^0.
+  double total_weight_kg = 0.0;
+  /// Weighted mean of the quadratic features q~ (zero in its linear part up to rounding).
+  /// Centring the features is what lets a quadratic fit recover a quadratic deformation exactly.
+  Eigen::Matrix<double, 9, 1> mean_features = Eigen::Matrix<double, 9, 1>::Zero();
+  /// Pseudo-inverse of the feature moment matrix (A_qq^-1, 3x3 block used by linear mode).
+  Eigen::Matrix<double, 9, 9> moment_inverse = Eigen::Matrix<double, 9, 9>::Zero();
+  /// N with T = A_pq A_qq^+ + R N: directions the rest shape does not span (a flat or thin
+  /// cluster) follow the rotation instead of collapsing. Zero for a well-spread cluster.
+  Eigen::Matrix<double, 3, 9> null_completion = Eigen::Matrix<double, 3, 9>::Zero();
+};
+
+/// What the hierarchy update of one cluster needs from the latest step or registration.
+/// Goals are g_i = transform * q~_i + translation, with q~ the quadratic features of the rest
+/// offset q_i (only the first three columns are non-zero unless the mode is quadratic).
+struct ClusterDeformation {
+  Eigen::Vector3d center_of_mass = Eigen::Vector3d::Zero();  ///< x_cm of the current points.
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();     ///< x_cm - transform * mean_features.
+  Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();  ///< [A Q M].
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();                 ///< R.
+  /// Upper bound of |g_i - x_i| over the cluster's points for the current positions
+  /// (erratum 3): exact maximum taken in the pass that moves the points.
+  double goal_deviation_bound_m = 0.0;
+};
+
+/// One object simulated or registered by clustered meshless shape matching.
+/// Rest-shape precomputation happens once in the constructor; step() and track() are the
+/// per-cycle work and allocate nothing.
+class ShapeMatchingBody {
+ public:
+  /// @throw std::invalid_argument naming the bad value: empty or non-finite rest points,
+  ///        mass_kg <= 0, stiffness, beta or damping outside [0, 1], clusters outside
+  ///        [1, points], negative overlap.
+  ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points, const ShapeMatchingConfig& config);
+
+  /// One explicit step: v += alpha (g - x) / h + h a, x += h v, with momentum-conserving
+  /// damping of the non-rigid velocity. Points shared by clusters move to the mean goal.
+  /// @throw std::invalid_argument if dt_s is not finite and > 0 or acceleration is not finite.
+  void step(double dt_s, const Eigen::Vector3d& acceleration_mps2);
+
+  /// Registers observed positions of all points (same order as the rest shape) without
+  /// integrating: the fitted transforms become the goal transforms. Non-finite observations
+  /// count as unobserved: a cluster is then fitted on its observed points alone and its
+  /// unobserved points move to their goals (a cluster with none observed keeps its last
+  /// transform). Velocities become zero.
+  /// @return the number of unobserved points.
+  /// @throw std::invalid_argument if the size differs; the state is then unchanged.
+  std::size_t track(const std::vector<Eigen::Vector3d>& observed_points);
+
+  /// Places the points (for a deformed start or a response) and sets their velocities to
+  /// zero. The per-cluster outputs are refreshed by registering the new positions.
+  /// @throw std::invalid_argument if the size differs or a point is not finite.
+  void setPositions(const std::vector<Eigen::Vector3d>& positions);
+
+  const ShapeMatchingConfig& config() const { return config_; }
+  std::size_t pointCount() const { return positions_.size(); }
+  double pointMassKg() const { return point_mass_kg_; }
+  const std::vector<Eigen::Vector3d>& restPositions() const { return rest_positions_; }
+  const std::vector<Eigen::Vector3d>& positions() const { return positions_; }
+  const std::vector<Eigen::Vector3d>& velocities() const { return velocities_; }
+  std::size_t clusterCount() const { return clusters_.size(); }
+  const Cluster& cluster(std::size_t k) const { return clusters_[k]; }
+  const ClusterDeformation& deformation(std::size_t k) const { return deformations_[k]; }
+
+ private:
+  template <DeformationMode Mode, bool Damped>
+  void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);
+  template <DeformationMode Mode>
+  void registerPositions(const std::vector<Eigen::Vector3d>* observed);
+
+  ShapeMatchingConfig config_;
+  double point_mass_kg_ = 0.0;
+  std::vector<Eigen::Vector3d> rest_positions_;
+  std::vector<Eigen::Vector3d> positions_;
+  std::vector<Eigen::Vector3d> velocities_;
+  std::vector<Cluster> clusters_;
+  std::vector<ClusterDeformation> deformations_;
+  std::vector<std::uint32_t> membership_counts_;  ///< Clusters holding each point.
+  std::vector<std::uint32_t> shared_points_;     ///< Points held by more than one cluster.
+  std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
+  std::vector<Eigen::Vector3d> target_velocity_sums_;  ///< Scratch for shared points' damping.
+  /// Per-cluster momenta about the cluster's centre of mass, combined into the object's
+  /// rigid motion that damping keeps.
+  struct ClusterMomenta {
+    Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+    Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+  };
+  std::vector<ClusterMomenta> cluster_momenta_;
+  std::vector<Eigen::Vector3d> cluster_motion_;        ///< Predicted centre-of-mass step.
+};
+
+/// Quadratic features q~ = (qx, qy, qz, qx^2, qy^2, qz^2, qx qy, qy qz, qz qx).
+inline Eigen::Matrix<double, 9, 1> quadraticFeatures(const Eigen::Vector3d& q) {
+  Eigen::Matrix<double, 9, 1> f;
+  f << q.x(), q.y(), q.z(), q.x() * q.x(), q.y() * q.y(), q.z() * q.z(), q.x() * q.y(),
+      q.y() * q.z(), q.z() * q.x();
+  return f;
+}
+
+}  // namespace deformable_collision

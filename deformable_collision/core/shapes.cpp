@@ -1,0 +1,38 @@
+#include "deformable_collision/core/shapes.h"
+
+#include <random>
+
+namespace deformable_collision {
+namespace {
+
+/// Uniform in [-1, 1) from the top 53 bits, identical on every standard library.
+double symmetricUnit(std::mt19937_64& engine) {
+  return static_cast<double>(engine() >> 11) * 0x1.0p-52 - 1.0;
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> sampleBox(std::size_t count, const Eigen::Vector3d& half_extents_m,
+                                       std::uint64_t seed) {
+  std::mt19937_64 engine(seed);
+  std::vector<Eigen::Vector3d> points(count);
+  for (auto& p : points) {
+    const Eigen::Vector3d u(symmetricUnit(engine), symmetricUnit(engine), symmetricUnit(engine));
+    p = u.cwiseProduct(half_extents_m);
+  }
+  return points;
+}
+
+std::vector<Eigen::Vector3d> sampleEllipsoid(std::size_t count, const Eigen::Vector3d& radii_m,
+                                             std::uint64_t seed) {
+  std::mt19937_64 engine(seed);
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(count);
+  while (points.size() < count) {
+    const Eigen::Vector3d u(symmetricUnit(engine), symmetricUnit(engine), symmetricUnit(engine));
+    if (u.squaredNorm() <= 1.0) points.push_back(u.cwiseProduct(radii_m));
+  }
+  return points;
+}
+
+}  // namespace deformable_collision

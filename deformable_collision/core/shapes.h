@@ -1,0 +1,21 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+namespace deformable_collision {
+
+/// Deterministic synthetic point sets, shared by the demo, the benchmarks and the tests.
+/// The same seed gives the same points on every platform (std::mt19937_64 and a
+/// hand-written uniform mapping, not the implementation-defined distributions).
+
+/// `count` points uniformly inside an axis-aligned box centred at the origin.
+std::vector<Eigen::Vector3d> sampleBox(std::size_t count, const Eigen::Vector3d& half_extents_m,
+                                       std::uint64_t seed);
+
+/// `count` points uniformly inside an axis-aligned ellipsoid centred at the origin.
+std::vector<Eigen::Vector3d> sampleEllipsoid(std::size_t count, const Eigen::Vector3d& radii_m,
+                                             std::uint64_t seed);
+
+}  // namespace deformable_collision

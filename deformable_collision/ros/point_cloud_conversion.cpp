@@ -1,0 +1,147 @@
+#include "deformable_collision/ros/point_cloud_conversion.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+namespace deformable_collision {
+namespace {
+
+struct CoordinateField {
+  std::uint32_t offset = 0;
+  std::uint8_t datatype = 0;
+};
+
+std::uint32_t byteSize(std::uint8_t datatype) {
+  return datatype == sensor_msgs::PointField::FLOAT64 ? 8 : 4;
+}
+
+double readCoordinate(const std::uint8_t* bytes, std::uint8_t datatype, bool swap) {
+  std::uint8_t buffer[8];
+  const std::uint32_t size = byteSize(datatype);
+  std::memcpy(buffer, bytes, size);
+  if (swap) std::reverse(buffer, buffer + size);
+  if (datatype == sensor_msgs::PointField::FLOAT64) {
+    double value;
+    std::memcpy(&value, buffer, sizeof value);
+    return value;
+  }
+  float value;
+  std::memcpy(&value, buffer, sizeof value);
+  return value;
+}
+
+bool hostIsBigEndian() {
+  const std::uint16_t probe = 1;
+  std::uint8_t first;
+  std::memcpy(&first, &probe, 1);
+  return first == 0;
+}
+
+}  // namespace
+
+CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinitePoints policy,
+                                std::size_t max_points, std::vector<Eigen::Vector3d>& points) {
+  CloudReadResult result;
+  std::ostringstream error;
+  CoordinateField fields[3];
+  const char* names[3] = {"x", "y", "z"};
+  for (int axis = 0; axis < 3; ++axis) {
+    const auto found = std::find_if(cloud.fields.begin(), cloud.fields.end(),
+                                    [&](const sensor_msgs::PointField& f) { return f.name == names[axis]; });
+    if (found == cloud.fields.end()) {
+      error << "field '" << names[axis] << "' is missing";
+      result.error = error.str();
+      return result;
+    }
+    if (found->datatype != sensor_msgs::PointField::FLOAT32 &&
+        found->datatype != sensor_msgs::PointField::FLOAT64) {
+      error << "field '" << names[axis] << "' has datatype " << int(found->datatype)
+            << ", expected FLOAT32 (7) or FLOAT64 (8)";
+      result.error = error.str();
+      return result;
+    }
+    if (static_cast<std::uint64_t>(found->offset) + byteSize(found->datatype) > cloud.point_step) {
+      error << "field '" << names[axis] << "' at offset " << found->offset
+            << " does not fit in point_step " << cloud.point_step;
+      result.error = error.str();
+      return result;
+    }
+    fields[axis] = {found->offset, found->datatype};
+  }
+
+  const std::uint64_t count = static_cast<std::uint64_t>(cloud.width) * cloud.height;
+  if (count > max_points) {
+    error << "cloud of " << count << " points exceeds max_points_per_object " << max_points;
+    result.error = error.str();
+    return result;
+  }
+  const std::uint64_t row_bytes = static_cast<std::uint64_t>(cloud.width) * cloud.point_step;
+  if (count > 0 && cloud.row_step < row_bytes) {
+    error << "row_step " << cloud.row_step << " is shorter than width " << cloud.width
+          << " x point_step " << cloud.point_step;
+    result.error = error.str();
+    return result;
+  }
+  const std::uint64_t needed =
+      count == 0 ? 0 : static_cast<std::uint64_t>(cloud.height - 1) * cloud.row_step + row_bytes;
+  if (cloud.data.size() < needed) {
+    error << "data has " << cloud.data.size() << " bytes, the header declares " << needed;
+    result.error = error.str();
+    return result;
+  }
+
+  const bool swap = static_cast<bool>(cloud.is_bigendian) != hostIsBigEndian();
+  points.clear();
+  points.reserve(count);
+  for (std::uint32_t row = 0; row < cloud.height; ++row) {
+    const std::uint8_t* row_start = cloud.data.data() + static_cast<std::size_t>(row) * cloud.row_step;
+    for (std::uint32_t column = 0; column < cloud.width; ++column) {
+      const std::uint8_t* point = row_start + static_cast<std::size_t>(column) * cloud.point_step;
+      Eigen::Vector3d p;
+      for (int axis = 0; axis < 3; ++axis) {
+        p[axis] = readCoordinate(point + fields[axis].offset, fields[axis].datatype, swap);
+      }
+      if (!p.allFinite()) {
+        ++result.non_finite;
+        if (policy == NonFinitePoints::kDrop) continue;
+        p.setConstant(std::numeric_limits<double>::quiet_NaN());
+      }
+      points.push_back(p);
+    }
+  }
+  return result;
+}
+
+void writeCloudPoints(const std::vector<Eigen::Vector3d>& points, sensor_msgs::PointCloud2& cloud) {
+  constexpr std::uint32_t kPointStep = 3 * sizeof(float);
+  if (cloud.fields.size() != 3) {
+    cloud.fields.resize(3);
+    const char* names[3] = {"x", "y", "z"};
+    for (std::uint32_t axis = 0; axis < 3; ++axis) {
+      cloud.fields[axis].name = names[axis];
+      cloud.fields[axis].offset = axis * sizeof(float);
+      cloud.fields[axis].datatype = sensor_msgs::PointField::FLOAT32;
+      cloud.fields[axis].count = 1;
+    }
+  }
+  cloud.height = 1;
+  cloud.width = static_cast<std::uint32_t>(points.size());
+  cloud.point_step = kPointStep;
+  cloud.row_step = kPointStep * cloud.width;
+  cloud.is_bigendian = hostIsBigEndian();
+  cloud.is_dense = true;
+  cloud.data.resize(cloud.row_step);
+  std::uint8_t* out = cloud.data.data();
+  for (const auto& p : points) {
+    const float xyz[3] = {static_cast<float>(p.x()), static_cast<float>(p.y()),
+                          static_cast<float>(p.z())};
+    std::memcpy(out, xyz, kPointStep);
+    out += kPointStep;
+  }
+}
+
+}  // namespace deformable_collision

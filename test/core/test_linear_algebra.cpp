@@ -1,0 +1,105 @@
+#include "deformable_collision/core/linear_algebra.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace deformable_collision {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+void expectProperRotation(const Eigen::Quaterniond& q) {
+  const Eigen::Matrix3d r = q.toRotationMatrix();
+  ASSERT_TRUE(r.allFinite());
+  EXPECT_TRUE((r.transpose() * r).isApprox(Eigen::Matrix3d::Identity(), 1e-12));
+  EXPECT_NEAR(r.determinant(), 1.0, 1e-12);
+}
+
+TEST(PseudoInverse, FullRankIsTheInverse) {
+  Eigen::Matrix3d m;
+  m << 4, 1, 0.5, 1, 3, 0.2, 0.5, 0.2, 2;
+  const auto result = pseudoInverseSymmetric<3>(m);
+  EXPECT_EQ(result.rank, 3);
+  EXPECT_TRUE((result.inverse * m).isApprox(Eigen::Matrix3d::Identity(), 1e-12));
+  EXPECT_LT(result.null_projector.norm(), 1e-12);
+}
+
+TEST(PseudoInverse, PlanarMomentKeepsTheNormalAsNullSpace) {
+  const Eigen::Matrix3d m = Eigen::Vector3d(2.0, 5.0, 0.0).asDiagonal();
+  const auto result = pseudoInverseSymmetric<3>(m);
+  EXPECT_EQ(result.rank, 2);
+  EXPECT_TRUE(result.inverse.isApprox(Eigen::Vector3d(0.5, 0.2, 0.0).asDiagonal().toDenseMatrix(),
+                                      1e-12));
+  EXPECT_TRUE(result.null_projector.isApprox(
+      Eigen::Vector3d(0.0, 0.0, 1.0).asDiagonal().toDenseMatrix(), 1e-12));
+}
+
+TEST(PseudoInverse, ZeroMatrixIsAllNullSpace) {
+  const auto result = pseudoInverseSymmetric<9>(Eigen::Matrix<double, 9, 9>::Zero());
+  EXPECT_EQ(result.rank, 0);
+  EXPECT_EQ(result.inverse.norm(), 0.0);
+  EXPECT_TRUE(result.null_projector.isApprox(Eigen::Matrix<double, 9, 9>::Identity()));
+}
+
+struct RotationCase {
+  const char* name;
+  double angle_rad;
+  Eigen::Vector3d axis;
+  Eigen::Vector3d stretch;  // symmetric positive factor applied after the rotation
+};
+
+class ExtractRotationTest : public ::testing::TestWithParam<RotationCase> {};
+
+TEST_P(ExtractRotationTest, RecoversTheRotationOfRotationTimesStretch) {
+  const auto& c = GetParam();
+  const Eigen::Matrix3d rotation = Eigen::AngleAxisd(c.angle_rad, c.axis.normalized()).matrix();
+  const Eigen::Matrix3d matrix = rotation * c.stretch.asDiagonal();
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  extractRotation(matrix, q, 100);
+  expectProperRotation(q);
+  EXPECT_TRUE(q.toRotationMatrix().isApprox(rotation, 1e-9))
+      << q.toRotationMatrix() << "\nexpected\n" << rotation;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, ExtractRotationTest,
+    ::testing::Values(
+        RotationCase{"identity", 0.0, {1, 0, 0}, {1, 1, 1}},
+        RotationCase{"quarter_turn_z", kPi / 2, {0, 0, 1}, {1, 1, 1}},
+        RotationCase{"oblique_120deg_stretched", 2 * kPi / 3, {1, 2, 3}, {2.0, 0.5, 1.0}},
+        RotationCase{"near_half_turn", 0.95 * kPi, {0, 1, 1}, {1, 1, 1}},
+        RotationCase{"tiny_scale", 0.3, {1, 0, 1}, {1e-8, 2e-8, 3e-8}},
+        RotationCase{"huge_scale", 0.3, {1, 1, 0}, {1e8, 2e8, 3e8}}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+struct DegenerateCase {
+  const char* name;
+  Eigen::Matrix3d matrix;
+};
+
+class DegenerateRotationTest : public ::testing::TestWithParam<DegenerateCase> {};
+
+TEST_P(DegenerateRotationTest, StaysAProperRotation) {
+  Eigen::Quaterniond q(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0, 1, 0)));
+  extractRotation(GetParam().matrix, q);
+  expectProperRotation(q);
+}
+
+Eigen::Matrix3d rankOne() {
+  return Eigen::Vector3d(1, 2, 3) * Eigen::Vector3d(0.5, -1, 2).transpose();
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, DegenerateRotationTest,
+    ::testing::Values(
+        DegenerateCase{"zero", Eigen::Matrix3d::Zero()},
+        DegenerateCase{"rank_one", rankOne()},
+        DegenerateCase{"rank_two", Eigen::Vector3d(1, 2, 0).asDiagonal().toDenseMatrix()},
+        DegenerateCase{"reflection", Eigen::Vector3d(-1, 1, 1).asDiagonal().toDenseMatrix()},
+        DegenerateCase{"point_inversion", -Eigen::Matrix3d::Identity()},
+        DegenerateCase{"nan", Eigen::Matrix3d::Constant(std::nan(""))}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+}  // namespace
+}  // namespace deformable_collision
