@@ -133,22 +133,50 @@ inline void goalOf(const double (&transform)[3][K], const double (&translation)[
   }
 }
 
-/// Registers a cluster on its moments, taken about `reference`: moves the centre of mass,
-/// updates the warm-started rotation and returns the least-squares transform (R alone for
-/// a rigid cluster).
+/// Moments of the whole cluster as stored sums.
+template <int K, bool WithMomentum, bool WithSpin>
+ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
+                        const std::vector<Eigen::Vector3d>& positions,
+                        const std::vector<Eigen::Vector3d>& velocities,
+                        const Eigen::Vector3d& reference) {
+  const Moments<K> m = clusterMoments<K, WithMomentum, WithSpin>(cluster, point_mass_kg, positions,
+                                                                 velocities, reference);
+  ClusterSums sums;
+  sums.reference = reference;
+  for (int r = 0; r < 3; ++r) {
+    sums.offset[r] = m.offset[r];
+    sums.momentum[r] = m.momentum[r];
+    sums.angular_momentum[r] = m.angular_momentum[r];
+    for (int c = 0; c < K; ++c) sums.offset_features(r, c) = m.offset_features[r][c];
+    for (int c = 0; c < 3; ++c) sums.second_moment(r, c) = m.second_moment[r][c];
+  }
+  return sums;
+}
+
+/// Adds `scale` times raw sums to stored sums.
+template <int K>
+void addScaled(const Moments<K>& m, double scale, ClusterSums& sums) {
+  for (int r = 0; r < 3; ++r) {
+    sums.offset[r] += scale * m.offset[r];
+    sums.momentum[r] += scale * m.momentum[r];
+    sums.angular_momentum[r] += scale * m.angular_momentum[r];
+    for (int c = 0; c < K; ++c) sums.offset_features(r, c) += scale * m.offset_features[r][c];
+    for (int c = 0; c < 3; ++c) sums.second_moment(r, c) += scale * m.second_moment[r][c];
+  }
+}
+
+/// Registers a cluster on its sums: sets the centre of mass, updates the warm-started
+/// rotation and returns the least-squares transform (R alone for a rigid cluster).
 template <DeformationMode Mode, int K = kFeatureCount<Mode>>
-Eigen::Matrix<double, 3, K> fitCluster(const Cluster& cluster, const Moments<K>& m,
-                                       const Eigen::Vector3d& shift,
+Eigen::Matrix<double, 3, K> fitCluster(const Cluster& cluster, const ClusterSums& sums,
                                        ClusterDeformation& deformation) {
   const double mass = cluster.total_weight_kg;
-  Eigen::Matrix<double, 3, K> moment_pq;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < K; ++c) {
-      moment_pq(r, c) = m.offset_features[r][c] - mass * shift[r] * cluster.mean_features[c];
-    }
-  }
+  const Eigen::Vector3d shift = sums.offset / mass;
+  const Eigen::Matrix<double, 3, K> moment_pq =
+      sums.offset_features.template leftCols<K>() -
+      mass * shift * cluster.mean_features.template head<K>().transpose();
   extractRotation(moment_pq.template leftCols<3>(), deformation.rotation);
-  deformation.center_of_mass += shift;
+  deformation.center_of_mass = sums.reference + shift;
   const Eigen::Matrix3d rotation = deformation.rotation.toRotationMatrix();
   if constexpr (Mode == DeformationMode::kRigid) {
     return rotation;
@@ -447,8 +475,9 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     deformations_[k].center_of_mass = clusters_[k].rest_center_of_mass;
   }
-  cluster_momenta_.resize(clusters_.size());
-  cluster_motion_.assign(clusters_.size(), Eigen::Vector3d::Zero());
+  cluster_sums_.resize(clusters_.size());
+  goal_transforms_.assign(clusters_.size(), Eigen::Matrix<double, 3, 9>::Zero());
+  goal_translations_.assign(clusters_.size(), Eigen::Vector3d::Zero());
   setPositions(positions_);
 }
 
@@ -528,44 +557,24 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   const double kick[3] = {dt_s * acceleration_mps2.x(), dt_s * acceleration_mps2.y(),
                           dt_s * acceleration_mps2.z()};
 
-  // Every cluster is fitted on the positions at the start of the step, before any point moves.
+  // Goals come from the registration of the current positions (kept from the last step or
+  // registration), before any point moves.
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    const Cluster& cluster = clusters_[k];
-    ClusterDeformation& deformation = deformations_[k];
-    const auto m = clusterMoments<K, true, Damped>(cluster, point_mass_kg_, positions_,
-                                                   velocities_, deformation.center_of_mass);
-    const double mass = cluster.total_weight_kg;
-    const Eigen::Vector3d shift = Eigen::Vector3d(m.offset[0], m.offset[1], m.offset[2]) / mass;
-    const auto fit = fitCluster<Mode>(cluster, m, shift, deformation);
+    const ClusterDeformation& deformation = deformations_[k];
     const Eigen::Matrix3d rotation = deformation.rotation.toRotationMatrix();
+    const Eigen::Matrix<double, 3, K> fit = deformation.transform.template leftCols<K>();
+    Eigen::Matrix<double, 3, K> goal;
     if constexpr (Mode == DeformationMode::kRigid) {
-      setGoalTransform<K>(cluster, fit, deformation);
+      goal = rotation;
     } else if constexpr (Mode == DeformationMode::kLinear) {
-      setGoalTransform<K>(cluster, linearGoalTransform(fit, deformation.rotation, config_.beta, config_.preserve_volume), deformation);
+      goal = linearGoalTransform(fit, deformation.rotation, config_.beta, config_.preserve_volume);
     } else {
-      Eigen::Matrix<double, 3, K> blended = config_.beta * fit;
-      blended.template leftCols<3>() += (1.0 - config_.beta) * rotation;
-      setGoalTransform<K>(cluster, blended, deformation);
+      goal = config_.beta * fit;
+      goal.template leftCols<3>() += (1.0 - config_.beta) * rotation;
     }
-    const Eigen::Vector3d velocity =
-        Eigen::Vector3d(m.momentum[0], m.momentum[1], m.momentum[2]) / mass;
-    // Goals conserve the cluster's momentum, so its centre of mass moves by this much in the
-    // step; measuring the goal deviation in the moved frame keeps the bound free of the
-    // object's own motion.
-    cluster_motion_[k] = dt_s * (velocity + Eigen::Vector3d(kick[0], kick[1], kick[2]));
-    if constexpr (Damped) {
-      ClusterMomenta& momenta = cluster_momenta_[k];
-      momenta.momentum = mass * velocity;
-      momenta.angular_momentum =
-          Eigen::Vector3d(m.angular_momentum[0], m.angular_momentum[1], m.angular_momentum[2]) -
-          mass * shift.cross(velocity);
-      Eigen::Matrix3d second_moment;
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) second_moment(r, c) = m.second_moment[r][c];
-      }
-      second_moment -= mass * shift * shift.transpose();
-      momenta.inertia = second_moment.trace() * Eigen::Matrix3d::Identity() - second_moment;
-    }
+    goal_transforms_[k].template leftCols<K>() = goal;
+    goal_translations_[k] =
+        deformation.center_of_mass - goal * clusters_[k].mean_features.template head<K>();
   }
 
   // Damping keeps the rigid motion of the whole object, not of each cluster: clusters
@@ -576,22 +585,27 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   if constexpr (Damped) {
     double mass = 0.0;
     Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+    const Eigen::Vector3d origin = deformations_[0].center_of_mass;
     for (std::size_t k = 0; k < clusters_.size(); ++k) {
       mass += clusters_[k].total_weight_kg;
-      object_center += clusters_[k].total_weight_kg *
-                       (deformations_[k].center_of_mass - deformations_[0].center_of_mass);
-      momentum += cluster_momenta_[k].momentum;
+      object_center += clusters_[k].total_weight_kg * (deformations_[k].center_of_mass - origin);
+      momentum += cluster_sums_[k].momentum;
     }
-    object_center = deformations_[0].center_of_mass + object_center / mass;
+    object_center = origin + object_center / mass;
     object_velocity = momentum / mass;
     Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
     Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
     for (std::size_t k = 0; k < clusters_.size(); ++k) {
+      const ClusterSums& sums = cluster_sums_[k];
       const double cluster_mass = clusters_[k].total_weight_kg;
+      const Eigen::Vector3d shift = sums.offset / cluster_mass;
+      const Eigen::Vector3d velocity = sums.momentum / cluster_mass;
+      const Eigen::Matrix3d second = sums.second_moment - cluster_mass * shift * shift.transpose();
+      // Parallel-axis sums of the clusters about the object's centre.
       const Eigen::Vector3d arm = deformations_[k].center_of_mass - object_center;
-      angular_momentum += cluster_momenta_[k].angular_momentum +
-                          arm.cross(cluster_momenta_[k].momentum);
-      inertia += cluster_momenta_[k].inertia +
+      angular_momentum +=
+          sums.angular_momentum - cluster_mass * shift.cross(velocity) + arm.cross(sums.momentum);
+      inertia += second.trace() * Eigen::Matrix3d::Identity() - second +
                  cluster_mass * (arm.squaredNorm() * Eigen::Matrix3d::Identity() -
                                  arm * arm.transpose());
     }
@@ -610,33 +624,51 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     const Eigen::Vector3d velocity = object_velocity + object_spin.cross(x - object_center);
     for (int r = 0; r < 3; ++r) out[r] = velocity[r];
   };
-  const auto deviationSquared = [](const double (&goal)[3], const Eigen::Vector3d& motion,
-                                   const Eigen::Vector3d& x) {
-    double sum = 0.0;
-    for (int r = 0; r < 3; ++r) {
-      const double e = goal[r] + motion[r] - x[r];
-      sum += e * e;
-    }
-    return sum;
-  };
 
+  // Move the points; the same pass sums the moved points for the next fit.
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
-    const GoalKernel<K> kernel(deformations_[k]);
-    const Eigen::Vector3d& motion = cluster_motion_[k];
-    double deviation_squared = 0.0;
+    double transform[3][K];
+    double translation[3];
+    for (int r = 0; r < 3; ++r) {
+      translation[r] = goal_translations_[k][r];
+      for (int c = 0; c < K; ++c) transform[r][c] = goal_transforms_[k](r, c);
+    }
+    const Eigen::Vector3d reference = deformations_[k].center_of_mass;
+    Moments<K> next;
     double goal[3];
     double target_velocity[3] = {};
     for (std::size_t j = 0; j < cluster.exclusive_count; ++j) {
-      Eigen::Vector3d& x = positions_[cluster.points[j]];
-      kernel.goal(cluster.rest_offsets[j], goal);
-      if constexpr (Damped) rigidVelocity(x, target_velocity);
-      integrate(x.data(), velocities_[cluster.points[j]].data(), goal, target_velocity);
-      deviation_squared = std::max(deviation_squared, deviationSquared(goal, motion, x));
+      const std::uint32_t i = cluster.points[j];
+      double f[K];
+      featureArray<K>(cluster.rest_offsets[j], f);
+      for (int r = 0; r < 3; ++r) {
+        double g = translation[r];
+        for (int c = 0; c < K; ++c) g += transform[r][c] * f[c];
+        goal[r] = g;
+      }
+      double* x = positions_[i].data();
+      double* v = velocities_[i].data();
+      if constexpr (Damped) rigidVelocity(positions_[i], target_velocity);
+      integrate(x, v, goal, target_velocity);
+      const double p[3] = {x[0] - reference.x(), x[1] - reference.y(), x[2] - reference.z()};
+      for (int r = 0; r < 3; ++r) {
+        next.offset[r] += p[r];
+        next.momentum[r] += v[r];
+        for (int c = 0; c < K; ++c) next.offset_features[r][c] += p[r] * f[c];
+      }
+      if constexpr (Damped) {
+        next.angular_momentum[0] += p[1] * v[2] - p[2] * v[1];
+        next.angular_momentum[1] += p[2] * v[0] - p[0] * v[2];
+        next.angular_momentum[2] += p[0] * v[1] - p[1] * v[0];
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) next.second_moment[r][c] += p[r] * p[c];
+        }
+      }
     }
     for (std::size_t j = cluster.exclusive_count; j < cluster.points.size(); ++j) {
       const std::uint32_t i = cluster.points[j];
-      kernel.goal(cluster.rest_offsets[j], goal);
+      goalOf<K>(transform, translation, cluster.rest_offsets[j], goal);
       goal_sums_[i] += Eigen::Vector3d(goal[0], goal[1], goal[2]);
       if constexpr (Damped) {
         rigidVelocity(positions_[i], target_velocity);
@@ -644,7 +676,10 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
             Eigen::Vector3d(target_velocity[0], target_velocity[1], target_velocity[2]);
       }
     }
-    deformations_[k].goal_deviation_bound_m = deviation_squared;
+    ClusterSums& sums = cluster_sums_[k];
+    sums = ClusterSums{};
+    sums.reference = reference;
+    addScaled(next, point_mass_kg_, sums);
   }
 
   for (const std::uint32_t i : shared_points_) {
@@ -663,18 +698,24 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     ClusterDeformation& deformation = deformations_[k];
-    const GoalKernel<K> kernel(deformation);
-    const Eigen::Vector3d& motion = cluster_motion_[k];
-    double deviation_squared = deformation.goal_deviation_bound_m;
-    double goal[3];
-    for (std::size_t j = cluster.exclusive_count; j < cluster.points.size(); ++j) {
-      kernel.goal(cluster.rest_offsets[j], goal);
-      deviation_squared =
-          std::max(deviation_squared, deviationSquared(goal, motion, positions_[cluster.points[j]]));
+    if (cluster.exclusive_count < cluster.points.size()) {
+      addScaled(accumulate<K, true, Damped>(cluster, cluster.exclusive_count, cluster.points.size(),
+                                            cluster.shared_weights_kg.data(), positions_,
+                                            velocities_, cluster_sums_[k].reference),
+                1.0, cluster_sums_[k]);
     }
-    deformation.goal_deviation_bound_m = std::sqrt(deviation_squared);
-    deformation.center_of_mass += motion;
-    deformation.translation += motion;
+    setGoalTransform<K>(cluster, fitCluster<Mode>(cluster, cluster_sums_[k], deformation),
+                        deformation);
+  }
+  measureFitResiduals<Mode>();
+}
+
+template <DeformationMode Mode>
+void ShapeMatchingBody::sumCurrentState() {
+  constexpr int K = kFeatureCount<Mode>;
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    cluster_sums_[k] = clusterSums<K, true, true>(clusters_[k], point_mass_kg_, positions_,
+                                                  velocities_, deformations_[k].center_of_mass);
   }
 }
 
@@ -684,24 +725,21 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
   const auto seen = [observed](std::uint32_t i) {
     return observed == nullptr || (*observed)[i].allFinite();
   };
+  for (auto& v : velocities_) v.setZero();
+  sumCurrentState<Mode>();
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     ClusterDeformation& deformation = deformations_[k];
-    const bool complete =
-        std::all_of(cluster.points.begin(), cluster.points.end(), seen);
-    if (complete) {
-      const auto m = clusterMoments<K, false, false>(cluster, point_mass_kg_, positions_,
-                                                     velocities_, deformation.center_of_mass);
-      const Eigen::Vector3d shift =
-          Eigen::Vector3d(m.offset[0], m.offset[1], m.offset[2]) / cluster.total_weight_kg;
-      setGoalTransform<K>(cluster, fitCluster<Mode>(cluster, m, shift, deformation), deformation);
+    if (std::all_of(cluster.points.begin(), cluster.points.end(), seen)) {
+      setGoalTransform<K>(cluster, fitCluster<Mode>(cluster, cluster_sums_[k], deformation),
+                          deformation);
     } else {
       fitObservedSubset<Mode>(cluster, point_mass_kg_, positions_, seen, deformation);
     }
   }
 
-  double goal[3];
   if (observed != nullptr) {
+    double goal[3];
     for (std::size_t k = 0; k < clusters_.size(); ++k) {
       const Cluster& cluster = clusters_[k];
       const GoalKernel<K> kernel(deformations_[k]);
@@ -717,9 +755,16 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
       positions_[i] = goal_sums_[i] / membership_counts_[i];
       goal_sums_[i].setZero();
     }
+    // The filled-in points moved: the sums must describe the positions now held.
+    sumCurrentState<Mode>();
   }
-  for (auto& v : velocities_) v.setZero();
+  measureFitResiduals<Mode>();
+}
 
+template <DeformationMode Mode>
+void ShapeMatchingBody::measureFitResiduals() {
+  constexpr int K = kFeatureCount<Mode>;
+  double goal[3];
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     const GoalKernel<K> kernel(deformations_[k]);

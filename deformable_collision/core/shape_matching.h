@@ -56,17 +56,31 @@ struct Cluster {
   Eigen::Matrix<double, 3, 9> null_completion = Eigen::Matrix<double, 3, 9>::Zero();
 };
 
-/// What the hierarchy update of one cluster needs from the latest step or registration.
-/// Goals are g_i = transform * q~_i + translation, with q~ the quadratic features of the rest
+/// What the hierarchy update of one cluster needs: the shape-matching registration of the
+/// cluster's current points (the least-squares fit that the next step builds its goals
+/// from), x_i ~ transform * q~_i + translation, with q~ the quadratic features of the rest
 /// offset q_i (only the first three columns are non-zero unless the mode is quadratic).
 struct ClusterDeformation {
   Eigen::Vector3d center_of_mass = Eigen::Vector3d::Zero();  ///< x_cm of the current points.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();     ///< x_cm - transform * mean_features.
-  Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();  ///< [A Q M].
+  /// [A Q M] of the fit; R alone for a rigid cluster.
+  Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();                 ///< R.
-  /// Upper bound of |g_i - x_i| over the cluster's points for the current positions
-  /// (erratum 3): exact maximum taken in the pass that moves the points.
+  /// Largest |transform * q~_i + translation - x_i| over the cluster's points (erratum 3):
+  /// the fit's residual, measured exactly after the points moved.
   double goal_deviation_bound_m = 0.0;
+};
+
+/// Mass-weighted sums over a cluster's points, taken about `reference` (a point near the
+/// cluster, so that coordinates far from the origin lose no precision): everything a fit
+/// and the damping need. Weights are the cluster's shares of the point masses.
+struct ClusterSums {
+  Eigen::Vector3d reference = Eigen::Vector3d::Zero();
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();                         ///< sum w (x - ref)
+  Eigen::Matrix<double, 3, 9> offset_features = Eigen::Matrix<double, 3, 9>::Zero();  ///< sum w (x - ref) q~^T
+  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();                       ///< sum w v
+  Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();               ///< sum w (x - ref) x v
+  Eigen::Matrix3d second_moment = Eigen::Matrix3d::Zero();                  ///< sum w (x - ref)(x - ref)^T
 };
 
 /// One object simulated or registered by clustered meshless shape matching.
@@ -81,6 +95,8 @@ class ShapeMatchingBody {
 
   /// One explicit step: v += alpha (g - x) / h + h a, x += h v, with momentum-conserving
   /// damping of the non-rigid velocity. Points shared by clusters move to the mean goal.
+  /// The pass that moves the points also sums what the next fit needs; one more pass
+  /// measures the new fit's residual.
   /// @throw std::invalid_argument if dt_s is not finite and > 0 or acceleration is not finite.
   void step(double dt_s, const Eigen::Vector3d& acceleration_mps2);
 
@@ -113,6 +129,10 @@ class ShapeMatchingBody {
   void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);
   template <DeformationMode Mode>
   void registerPositions(const std::vector<Eigen::Vector3d>* observed);
+  template <DeformationMode Mode>
+  void sumCurrentState();
+  template <DeformationMode Mode>
+  void measureFitResiduals();
 
   ShapeMatchingConfig config_;
   double point_mass_kg_ = 0.0;
@@ -125,15 +145,9 @@ class ShapeMatchingBody {
   std::vector<std::uint32_t> shared_points_;     ///< Points held by more than one cluster.
   std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
   std::vector<Eigen::Vector3d> target_velocity_sums_;  ///< Scratch for shared points' damping.
-  /// Per-cluster momenta about the cluster's centre of mass, combined into the object's
-  /// rigid motion that damping keeps.
-  struct ClusterMomenta {
-    Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
-    Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
-  };
-  std::vector<ClusterMomenta> cluster_momenta_;
-  std::vector<Eigen::Vector3d> cluster_motion_;        ///< Predicted centre-of-mass step.
+  std::vector<ClusterSums> cluster_sums_;  ///< Of the current positions and velocities.
+  std::vector<Eigen::Matrix<double, 3, 9>> goal_transforms_;  ///< Scratch of one step.
+  std::vector<Eigen::Vector3d> goal_translations_;             ///< Scratch of one step.
 };
 
 /// Quadratic features q~ = (qx, qy, qz, qx^2, qy^2, qz^2, qx qy, qy qz, qz qx).
