@@ -22,6 +22,7 @@ demo: build
 
 bench: build
 	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_shape_matching" --benchmark_counters_tabular=true
+	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_collision" 80000 20
 
 clean:
 	rm -rf build

@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace deformable_collision {
 
@@ -69,6 +70,22 @@ void extractRotation(const Eigen::Matrix3d& matrix, Eigen::Quaterniond& rotation
     rotation = rotation * Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis));
     rotation.normalize();
   }
+}
+
+double spectralNorm(const Eigen::Matrix3d& matrix) {
+  // Scaling first keeps the squares in A^T A inside the double range for any finite A.
+  if (!matrix.allFinite()) return std::numeric_limits<double>::infinity();
+  const double scale = matrix.cwiseAbs().maxCoeff();
+  if (scale == 0.0) return 0.0;
+  const Eigen::Matrix3d normalised = matrix / scale;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(normalised.transpose() * normalised,
+                                                              Eigen::EigenvaluesOnly);
+  // The Frobenius norm bounds the spectral norm from above: the answer when the
+  // eigensolver did not converge, and a cap on its rounding otherwise.
+  const double frobenius = normalised.norm();
+  if (solver.info() != Eigen::Success) return scale * frobenius;
+  const double largest = std::sqrt(std::max(0.0, solver.eigenvalues().maxCoeff()));
+  return scale * std::min(largest, frobenius);
 }
 
 }  // namespace deformable_collision

@@ -30,4 +30,9 @@ SymmetricPseudoInverse<N> pseudoInverseSymmetric(const Eigen::Matrix<double, N, 
 void extractRotation(const Eigen::Matrix3d& matrix, Eigen::Quaterniond& rotation,
                      int max_iterations = 30);
 
+/// Largest singular value of a 3x3 matrix (spectral norm), robust for zero, degenerate and
+/// inverted matrices and finite for any finite input; never below the true value by more
+/// than rounding (callers that need an upper bound add a relative margin).
+double spectralNorm(const Eigen::Matrix3d& matrix);
+
 }  // namespace deformable_collision

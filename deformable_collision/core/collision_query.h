@@ -1,0 +1,51 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "deformable_collision/core/sphere_tree.h"
+
+namespace deformable_collision {
+
+/// A contact between node `node_a` of object a and node `node_b` of object b.
+struct SphereContact {
+  static constexpr std::uint32_t kNoPoint = std::numeric_limits<std::uint32_t>::max();
+  std::uint32_t node_a = 0;
+  std::uint32_t node_b = 0;
+  std::uint16_t level = 0;  ///< The deeper of the two nodes' levels.
+  /// Midway between the two surfaces (spheres, or the closest point pair at the leaves).
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< Unit, from b to a.
+  /// Overlap in metres with every sphere and point grown by contact_distance / 2;
+  /// > 0 for every reported contact.
+  double depth_m = 0.0;
+  std::uint32_t point_a = kNoPoint;  ///< Closest pair, at the leaf level only.
+  std::uint32_t point_b = kNoPoint;
+};
+
+struct QueryCounters {
+  std::size_t node_pairs_tested = 0;
+  std::size_t point_tests = 0;  ///< Point-sphere and point-point distance tests.
+};
+
+/// Descends two sphere trees where their spheres come within the contact distance.
+/// Holds its traversal stack so that repeated queries allocate nothing.
+class HierarchyQuery {
+ public:
+  /// Appends to `contacts` the node pairs of trees `a` and `b` at `level` (0: the roots;
+  /// a node that is a leaf above `level` stands for itself) whose spheres come closer
+  /// than `contact_distance_m`. With `level` >= both trees' maxLevel() the query runs to
+  /// the leaves and tests points: a leaf pair is a contact if and only if one of its
+  /// point pairs is closer than `contact_distance_m`, so the contacts cover exactly the
+  /// point pairs that brute force finds. Spheres are computed lazily (SphereTree::sphere).
+  void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
+               std::vector<SphereContact>& contacts, QueryCounters& counters);
+
+ private:
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> stack_;
+};
+
+}  // namespace deformable_collision

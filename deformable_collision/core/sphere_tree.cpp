@@ -1,0 +1,264 @@
+#include "deformable_collision/core/sphere_tree.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <deque>
+#include <stdexcept>
+#include <string>
+
+#include "deformable_collision/core/linear_algebra.h"
+
+namespace deformable_collision {
+namespace {
+
+/// Relative slack added to every computed radius: the centre, the norms and the deviation
+/// bound are each rounded (relative error a few 1e-16 of the radius and of the coordinates),
+/// and enclosure must hold for the points as callers measure them.
+constexpr double kRoundingMargin = 1e-12;
+
+double withRoundingMargin(double radius, const Eigen::Vector3d& center) {
+  return radius + kRoundingMargin * (radius + center.cwiseAbs().maxCoeff());
+}
+
+}  // namespace
+
+SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& config)
+    : body_(&body) {
+  if (config.branching < 2) {
+    throw std::invalid_argument("SphereTreeConfig.branching = " +
+                                std::to_string(config.branching) + " must be >= 2");
+  }
+  if (config.leaf_size < 1) {
+    throw std::invalid_argument("SphereTreeConfig.leaf_size = " +
+                                std::to_string(config.leaf_size) + " must be >= 1");
+  }
+  if (config.exact_radius_points < 0) {
+    throw std::invalid_argument("SphereTreeConfig.exact_radius_points = " +
+                                std::to_string(config.exact_radius_points) + " must be >= 0");
+  }
+  exact_radius_points_ = static_cast<std::uint32_t>(config.exact_radius_points);
+  build(config);
+  spheres_.resize(nodes_.size());
+  stamps_.assign(nodes_.size(), 0);
+  cluster_norms_.resize(body.clusterCount());
+  scratch_spheres_.reserve(body.clusterCount());
+  std::size_t largest_node = 0;
+  for (const auto& node : nodes_) largest_node = std::max<std::size_t>(largest_node, node.point_count);
+  scratch_points_.reserve(largest_node);
+  scratch_order_.reserve(largest_node);
+}
+
+void SphereTree::build(const SphereTreeConfig& config) {
+  const ShapeMatchingBody& body = *body_;
+  const std::size_t cluster_count = body.clusterCount();
+  for (std::size_t k = 0; k < cluster_count; ++k) {
+    const Cluster& cluster = body.cluster(k);
+    for (std::uint32_t slot = 0; slot < cluster.points.size(); ++slot) {
+      point_indices_.push_back(cluster.points[slot]);
+      point_slots_.push_back(slot);
+    }
+  }
+
+  std::deque<std::uint32_t> to_split;
+  if (cluster_count > 1) {
+    SphereNode root;
+    root.point_count = static_cast<std::uint32_t>(point_indices_.size());
+    root.first_child = 1;
+    root.child_count = static_cast<std::uint32_t>(cluster_count);
+    nodes_.push_back(root);
+  }
+  std::uint32_t offset = 0;
+  for (std::size_t k = 0; k < cluster_count; ++k) {
+    SphereNode branch;
+    branch.cluster = static_cast<std::int32_t>(k);
+    branch.level = cluster_count > 1 ? 1 : 0;
+    branch.first_point = offset;
+    branch.point_count = static_cast<std::uint32_t>(body.cluster(k).points.size());
+    offset += branch.point_count;
+    to_split.push_back(static_cast<std::uint32_t>(nodes_.size()));
+    nodes_.push_back(branch);
+  }
+
+  const auto& rest = body.restPositions();
+  while (!to_split.empty()) {
+    const std::uint32_t index = to_split.front();
+    to_split.pop_front();
+    const SphereNode parent = nodes_[index];
+    max_level_ = std::max<int>(max_level_, parent.level);
+    if (parent.point_count <= static_cast<std::uint32_t>(config.leaf_size)) continue;
+
+    const auto begin = static_cast<std::ptrdiff_t>(parent.first_point);
+    const auto end = begin + parent.point_count;
+    Eigen::AlignedBox3d box;
+    for (auto s = begin; s < end; ++s) box.extend(rest[point_indices_[s]]);
+    Eigen::Index axis = 0;
+    box.sizes().maxCoeff(&axis);
+    // Slots move with their points: sort a permutation of the range, then apply it.
+    std::vector<std::uint32_t> order(parent.point_count);
+    for (std::uint32_t i = 0; i < parent.point_count; ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+      const std::uint32_t pa = point_indices_[begin + a];
+      const std::uint32_t pb = point_indices_[begin + b];
+      return rest[pa][axis] < rest[pb][axis] || (rest[pa][axis] == rest[pb][axis] && pa < pb);
+    });
+    std::vector<std::uint32_t> indices(parent.point_count);
+    std::vector<std::uint32_t> slots(parent.point_count);
+    for (std::uint32_t i = 0; i < parent.point_count; ++i) {
+      indices[i] = point_indices_[begin + order[i]];
+      slots[i] = point_slots_[begin + order[i]];
+    }
+    std::copy(indices.begin(), indices.end(), point_indices_.begin() + begin);
+    std::copy(slots.begin(), slots.end(), point_slots_.begin() + begin);
+
+    const auto children =
+        std::min<std::uint32_t>(static_cast<std::uint32_t>(config.branching), parent.point_count);
+    nodes_[index].first_child = static_cast<std::uint32_t>(nodes_.size());
+    nodes_[index].child_count = children;
+    for (std::uint32_t c = 0; c < children; ++c) {
+      SphereNode child;
+      child.cluster = parent.cluster;
+      child.level = static_cast<std::uint16_t>(parent.level + 1);
+      const std::uint32_t from = parent.point_count * c / children;
+      const std::uint32_t to = parent.point_count * (c + 1) / children;
+      child.first_point = parent.first_point + from;
+      child.point_count = to - from;
+      to_split.push_back(static_cast<std::uint32_t>(nodes_.size()));
+      nodes_.push_back(child);
+    }
+  }
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i) computeRestData(i);
+}
+
+void SphereTree::computeRestData(std::uint32_t index) {
+  SphereNode& node = nodes_[index];
+  const ShapeMatchingBody& body = *body_;
+  scratch_points_.clear();
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    if (node.cluster < 0) {
+      scratch_points_.push_back(body.restPositions()[point_indices_[s]]);
+    } else {
+      scratch_points_.push_back(body.cluster(node.cluster).rest_offsets[point_slots_[s]]);
+    }
+  }
+  const Sphere rest = smallestEnclosingSphere(scratch_points_, scratch_order_);
+  node.rest_center = rest.center;
+  node.rest_radius_m = rest.radius;
+  if (node.cluster < 0) return;
+  const Eigen::Vector3d& c = rest.center;
+  for (const auto& q : scratch_points_) {
+    const Eigen::Vector3d squares(q.x() * q.x() - c.x() * c.x(), q.y() * q.y() - c.y() * c.y(),
+                                  q.z() * q.z() - c.z() * c.z());
+    const Eigen::Vector3d mixed(q.x() * q.y() - c.x() * c.y(), q.y() * q.z() - c.y() * c.z(),
+                                q.z() * q.x() - c.z() * c.x());
+    node.quadratic_extent_m2 = std::max(node.quadratic_extent_m2, squares.norm());
+    node.mixed_extent_m2 = std::max(node.mixed_extent_m2, mixed.norm());
+  }
+}
+
+void SphereTree::beginCycle(SphereUpdate method) {
+  method_ = method;
+  ++cycle_;
+  counters_ = {};
+  if (method == SphereUpdate::kBottomUpRefit) refitBottomUp();
+}
+
+const Sphere& SphereTree::sphere(std::uint32_t index) {
+  if (stamps_[index] == cycle_) return spheres_[index];
+  Sphere sphere;
+  if (method_ == SphereUpdate::kExactRefit) {
+    sphere = exactSphere(index);
+  } else if (nodes_[index].cluster < 0) {
+    sphere = spanningSphere(index);
+  } else {
+    sphere = deformationSphere(index);
+  }
+  spheres_[index] = sphere;
+  stamps_[index] = cycle_;
+  ++counters_.spheres_updated;
+  return spheres_[index];
+}
+
+const SphereTree::ClusterNorms& SphereTree::norms(std::size_t cluster) {
+  ClusterNorms& norms = cluster_norms_[cluster];
+  if (norms.stamp == cycle_) return norms;
+  norms.stamp = cycle_;
+  const DeformationMode mode = body_->config().mode;
+  // A rotation has norm 1: rigid clusters compute no norm at all.
+  if (mode == DeformationMode::kRigid) return norms;
+  const auto& transform = body_->deformation(cluster).transform;
+  norms.linear = spectralNorm(transform.leftCols<3>());
+  if (mode == DeformationMode::kQuadratic) {
+    norms.quadratic = spectralNorm(transform.middleCols<3>(3));
+    norms.mixed = spectralNorm(transform.rightCols<3>());
+  }
+  ++counters_.norm_evaluations;
+  return norms;
+}
+
+Sphere SphereTree::deformationSphere(std::uint32_t index) {
+  const SphereNode& node = nodes_[index];
+  const ClusterDeformation& deformation = body_->deformation(node.cluster);
+  Sphere sphere;
+  if (body_->config().mode == DeformationMode::kQuadratic) {
+    sphere.center =
+        deformation.transform * quadraticFeatures(node.rest_center) + deformation.translation;
+  } else {
+    sphere.center = deformation.transform.leftCols<3>() * node.rest_center + deformation.translation;
+  }
+  if (node.isLeaf() || node.point_count <= exact_radius_points_) {
+    // A few points are quickly measured, and their exact distance is tighter than the bound.
+    const auto& positions = body_->positions();
+    double radius = 0.0;
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      radius = std::max(radius, (positions[point_indices_[s]] - sphere.center).norm());
+    }
+    sphere.radius = withRoundingMargin(radius, sphere.center);
+    return sphere;
+  }
+  const ClusterNorms& n = norms(node.cluster);
+  const double radius = n.linear * node.rest_radius_m + n.quadratic * node.quadratic_extent_m2 +
+                        n.mixed * node.mixed_extent_m2 + deformation.goal_deviation_bound_m;
+  sphere.radius = withRoundingMargin(radius, sphere.center);
+  return sphere;
+}
+
+Sphere SphereTree::exactSphere(std::uint32_t index) {
+  const SphereNode& node = nodes_[index];
+  const auto& positions = body_->positions();
+  scratch_points_.clear();
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    scratch_points_.push_back(positions[point_indices_[s]]);
+  }
+  Sphere sphere = smallestEnclosingSphere(scratch_points_, scratch_order_);
+  sphere.radius = withRoundingMargin(sphere.radius, sphere.center);
+  return sphere;
+}
+
+Sphere SphereTree::spanningSphere(std::uint32_t index) {
+  const SphereNode& node = nodes_[index];
+  scratch_spheres_.clear();
+  for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+    scratch_spheres_.push_back(sphere(c));
+  }
+  Sphere result = enclosingSphereOfSpheres(scratch_spheres_.data(), scratch_spheres_.size());
+  result.radius = withRoundingMargin(result.radius, result.center);
+  return result;
+}
+
+void SphereTree::refitBottomUp() {
+  // Children always follow their parent in nodes_, so a backward sweep sees them first.
+  for (std::uint32_t i = static_cast<std::uint32_t>(nodes_.size()); i-- > 0;) {
+    const SphereNode& node = nodes_[i];
+    if (node.isLeaf()) {
+      spheres_[i] = exactSphere(i);
+    } else {
+      Sphere sphere = enclosingSphereOfSpheres(&spheres_[node.first_child], node.child_count);
+      sphere.radius = withRoundingMargin(sphere.radius, sphere.center);
+      spheres_[i] = sphere;
+    }
+    stamps_[i] = cycle_;
+  }
+  counters_.spheres_updated = nodes_.size();
+}
+
+}  // namespace deformable_collision

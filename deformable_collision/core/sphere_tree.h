@@ -1,0 +1,120 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "deformable_collision/core/bounding_sphere.h"
+#include "deformable_collision/core/shape_matching.h"
+
+namespace deformable_collision {
+
+struct SphereTreeConfig {
+  int branching = 2;  ///< Children of an internal node, >= 2.
+  int leaf_size = 8;  ///< Largest number of points in a leaf, >= 1.
+  /// Nodes of at most this many points measure their radius exactly around the updated
+  /// centre instead of bounding it: constant work per node, and much tighter spheres near
+  /// the leaves, where most visited nodes are. 0 measures only leaves.
+  int exact_radius_points = 64;
+};
+
+/// How the spheres of a cycle are obtained.
+enum class SphereUpdate {
+  /// From each cluster's goal transform and deviation bound (paper section 5.2 with the
+  /// errata of DESIGN.md): constant time per node, only for the nodes a query visits.
+  kDeformation,
+  /// Smallest enclosing sphere of the node's current points, for the nodes a query
+  /// visits: the tightest wrapped spheres, at a cost linear in the points under a node.
+  kExactRefit,
+  /// Every node refitted bottom-up when the cycle begins (leaves around their points,
+  /// parents around their children): the classic O(n) refit.
+  kBottomUpRefit,
+};
+
+/// Rest-shape data of one node. Offsets are in the cluster's centred coordinates
+/// (x - x_cm^0, erratum 1), except for an object root over several clusters.
+struct SphereNode {
+  Eigen::Vector3d rest_center = Eigen::Vector3d::Zero();  ///< c^0 - x_cm^0 of its cluster.
+  double rest_radius_m = 0.0;                              ///< r^0.
+  double quadratic_extent_m2 = 0.0;  ///< q_max of eq. 13 in centred coordinates.
+  double mixed_extent_m2 = 0.0;      ///< m_max of eq. 14, third row as in erratum 2.
+  std::uint32_t first_child = 0;
+  std::uint32_t child_count = 0;
+  std::uint32_t first_point = 0;  ///< Range of the node's points in pointIndices().
+  std::uint32_t point_count = 0;
+  std::int32_t cluster = -1;  ///< -1 for an object root over several clusters.
+  std::uint16_t level = 0;    ///< 0 at the root.
+  bool isLeaf() const { return child_count == 0; }
+};
+
+/// Counts of one cycle's sphere work.
+struct SphereTreeCounters {
+  std::size_t spheres_updated = 0;
+  std::size_t norm_evaluations = 0;  ///< Spectral norms computed (clusters touched).
+};
+
+/// Bounding sphere hierarchy of one ShapeMatchingBody, built once on its rest shape:
+/// balanced (children split a node's points into equal parts along its longest axis),
+/// wrapped (a node's sphere encloses its own points, not its children's spheres) and with
+/// one branch per cluster under the object's root. The body must outlive the tree.
+///
+/// Each cycle, spheres are computed when first asked for (sphere()), so a query that
+/// stops early touches only what it needs. Every point lies inside the sphere of every
+/// node that holds it, whatever the deformation: the deformation update adds each
+/// cluster's exact goal deviation bound (erratum 3) and a relative rounding margin.
+class SphereTree {
+ public:
+  /// @throw std::invalid_argument if branching < 2, leaf_size < 1 or exact_radius_points < 0.
+  SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& config);
+
+  /// Starts a cycle on the body's current state: spheres computed before are stale.
+  /// kBottomUpRefit refits every node now.
+  void beginCycle(SphereUpdate method = SphereUpdate::kDeformation);
+
+  /// The node's sphere in the current cycle, computed on first use.
+  const Sphere& sphere(std::uint32_t node);
+
+  const SphereNode& node(std::uint32_t index) const { return nodes_[index]; }
+  std::size_t nodeCount() const { return nodes_.size(); }
+  /// Deepest level; leaves may also sit higher in smaller clusters.
+  int maxLevel() const { return max_level_; }
+  /// Body point index of each node slot; a node's points are a contiguous range.
+  const std::vector<std::uint32_t>& pointIndices() const { return point_indices_; }
+  const ShapeMatchingBody& body() const { return *body_; }
+  const SphereTreeCounters& counters() const { return counters_; }
+
+ private:
+  struct ClusterNorms {
+    double linear = 1.0;
+    double quadratic = 0.0;
+    double mixed = 0.0;
+    std::uint32_t stamp = 0;
+  };
+
+  void build(const SphereTreeConfig& config);
+  void computeRestData(std::uint32_t index);
+  const ClusterNorms& norms(std::size_t cluster);
+  Sphere deformationSphere(std::uint32_t index);
+  Sphere exactSphere(std::uint32_t index);
+  Sphere spanningSphere(std::uint32_t index);
+  void refitBottomUp();
+
+  const ShapeMatchingBody* body_;
+  std::vector<SphereNode> nodes_;
+  std::vector<std::uint32_t> point_indices_;
+  std::vector<std::uint32_t> point_slots_;  ///< Slot of each point in its node's cluster.
+  int max_level_ = 0;
+
+  SphereUpdate method_ = SphereUpdate::kDeformation;
+  std::uint32_t cycle_ = 1;
+  std::vector<Sphere> spheres_;
+  std::vector<std::uint32_t> stamps_;
+  std::vector<ClusterNorms> cluster_norms_;
+  std::vector<Eigen::Vector3d> scratch_points_;
+  std::vector<std::uint32_t> scratch_order_;
+  std::vector<Sphere> scratch_spheres_;
+  std::uint32_t exact_radius_points_ = 0;
+  SphereTreeCounters counters_;
+};
+
+}  // namespace deformable_collision

@@ -1,0 +1,234 @@
+#include "deformable_collision/core/sphere_tree.h"
+
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <random>
+
+#include "deformable_collision/core/shapes.h"
+
+namespace deformable_collision {
+namespace {
+
+using Points = std::vector<Eigen::Vector3d>;
+
+ShapeMatchingConfig configFor(DeformationMode mode, int clusters) {
+  ShapeMatchingConfig c;
+  c.mode = mode;
+  c.clusters = clusters;
+  return c;
+}
+
+TEST(SphereTreeStructure, BalancedWrappedAndOneBranchPerCluster) {
+  for (const int clusters : {1, 3}) {
+    for (const int branching : {2, 4}) {
+      ShapeMatchingBody body(sampleEllipsoid(1000, {0.5, 0.3, 0.2}, 1),
+                             configFor(DeformationMode::kLinear, clusters));
+      SphereTree tree(body, {branching, 8});
+      const auto& root = tree.node(0);
+      EXPECT_EQ(root.level, 0);
+      if (clusters > 1) {
+        EXPECT_EQ(root.cluster, -1);
+        EXPECT_EQ(root.child_count, static_cast<std::uint32_t>(clusters));
+      }
+      std::vector<std::vector<int>> leaves_holding(clusters, std::vector<int>(body.pointCount(), 0));
+      for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
+        const auto& node = tree.node(i);
+        if (node.isLeaf()) {
+          EXPECT_LE(node.point_count, 8u);
+          for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+            ++leaves_holding[node.cluster][tree.pointIndices()[s]];
+          }
+          continue;
+        }
+        std::uint32_t smallest = node.point_count;
+        std::uint32_t largest = 0;
+        std::uint32_t covered = 0;
+        for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+          const auto& child = tree.node(c);
+          EXPECT_EQ(child.level, node.level + 1);
+          EXPECT_EQ(child.first_point, node.first_point + covered) << "children tile the parent";
+          covered += child.point_count;
+          smallest = std::min(smallest, child.point_count);
+          largest = std::max(largest, child.point_count);
+          if (node.cluster >= 0) EXPECT_EQ(child.cluster, node.cluster);
+        }
+        EXPECT_EQ(covered, node.point_count);
+        if (node.cluster >= 0) EXPECT_LE(largest - smallest, 1u) << "balanced";
+      }
+      for (int k = 0; k < clusters; ++k) {
+        for (const auto i : body.cluster(k).points) {
+          EXPECT_EQ(leaves_holding[k][i], 1) << "point " << i << " cluster " << k;
+        }
+      }
+    }
+  }
+}
+
+TEST(SphereTreeStructure, RejectsBadConfiguration) {
+  ShapeMatchingBody body(sampleBox(10, {1, 1, 1}, 1), ShapeMatchingConfig{});
+  EXPECT_THROW(SphereTree(body, {1, 8}), std::invalid_argument);
+  EXPECT_THROW(SphereTree(body, {2, 0}), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------
+// Enclosure invariant: after any deformation and update, every point lies inside the
+// sphere of every node that holds it, at every level, and no updated radius is below the
+// exact (smallest enclosing) radius of the node's points.
+
+struct EnclosureCase {
+  std::string name;
+  DeformationMode mode;
+  int clusters;
+  std::function<void(ShapeMatchingBody&)> deform;
+};
+
+using PointMap = std::function<Eigen::Vector3d(const Eigen::Vector3d&)>;
+
+Points mapped(const Points& points, const PointMap& map) {
+  Points out;
+  for (const auto& p : points) out.push_back(map(p));
+  return out;
+}
+
+std::vector<EnclosureCase> enclosureCases() {
+  std::vector<EnclosureCase> cases;
+  for (const auto mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    const std::string m = toString(mode);
+    const auto add = [&](const std::string& name, int clusters,
+                         std::function<void(ShapeMatchingBody&)> deform) {
+      cases.push_back({m + "_" + name, mode, clusters, std::move(deform)});
+    };
+    add("soft_simulated", 3, [](ShapeMatchingBody& body) {
+      body.setPositions(mapped(body.restPositions(), [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+        return Eigen::Vector3d(1.4 * p.x() + 0.3 * p.y() * p.y(), 0.7 * p.y(), p.z() + p.x() * p.z());
+      }));
+      for (int s = 0; s < 25; ++s) body.step(0.02, Eigen::Vector3d(0, 0, -9.81));
+    });
+    add("zero_stiffness_falling", 2, [](ShapeMatchingBody& body) {
+      std::mt19937_64 engine(4);
+      std::normal_distribution<double> noise(0.0, 0.05);
+      Points p = body.restPositions();
+      for (auto& x : p) x += Eigen::Vector3d(noise(engine), noise(engine), noise(engine));
+      body.setPositions(p);
+      for (int s = 0; s < 40; ++s) body.step(0.05, Eigen::Vector3d(0, 0, -9.81));
+    });
+    add("tracked_noisy", 3, [](ShapeMatchingBody& body) {
+      std::mt19937_64 engine(5);
+      std::normal_distribution<double> noise(0.0, 0.02);
+      const Eigen::Matrix3d r = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 0).normalized()).matrix();
+      Points p = mapped(body.restPositions(), [&](const Eigen::Vector3d& x) -> Eigen::Vector3d {
+        return r * Eigen::Vector3d(x.x(), x.y() + 0.5 * x.x() * x.x(), x.z()) + Eigen::Vector3d(3, 0, 1);
+      });
+      for (auto& x : p) x += Eigen::Vector3d(noise(engine), noise(engine), noise(engine));
+      body.track(p);
+    });
+    add("stretch_x100", 2, [](ShapeMatchingBody& body) {
+      body.track(mapped(body.restPositions(), [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+        return Eigen::Vector3d(100 * p.x(), p.y(), p.z());
+      }));
+      body.step(0.01, Eigen::Vector3d::Zero());
+    });
+    add("inverted", 2, [](ShapeMatchingBody& body) {
+      body.track(mapped(body.restPositions(), [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+        return Eigen::Vector3d(-p.x(), p.y(), -0.5 * p.z());
+      }));
+      for (int s = 0; s < 3; ++s) body.step(0.02, Eigen::Vector3d::Zero());
+    });
+    add("far_from_origin", 2, [](ShapeMatchingBody& body) {
+      body.track(mapped(body.restPositions(), [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+        return Eigen::Vector3d(1e5 + 1.2 * p.x(), -1e5 + p.y(), 1e5 + p.z() + p.x() * p.x());
+      }));
+      for (int s = 0; s < 5; ++s) body.step(0.02, Eigen::Vector3d(0, 0, -9.81));
+    });
+  }
+  return cases;
+}
+
+class EnclosureTest : public ::testing::TestWithParam<EnclosureCase> {};
+
+TEST_P(EnclosureTest, EveryPointInsideEveryNodeThatHoldsIt) {
+  const auto& c = GetParam();
+  ShapeMatchingConfig config = configFor(c.mode, c.clusters);
+  config.stiffness = c.name.find("zero_stiffness") != std::string::npos ? 0.0 : 0.4;
+  ShapeMatchingBody body(sampleEllipsoid(1500, {0.4, 0.25, 0.15}, 17), config);
+  SphereTree tree(body, {2, 6});
+  c.deform(body);
+
+  SphereTree exact(body, {2, 6});
+  tree.beginCycle(SphereUpdate::kDeformation);
+  exact.beginCycle(SphereUpdate::kExactRefit);
+  const auto& positions = body.positions();
+  for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
+    const Sphere& s = tree.sphere(i);
+    ASSERT_TRUE(s.center.allFinite() && std::isfinite(s.radius)) << "node " << i;
+    const auto& node = tree.node(i);
+    for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+      const Eigen::Vector3d& x = positions[tree.pointIndices()[slot]];
+      ASSERT_LE((x - s.center).norm(), s.radius)
+          << "node " << i << " level " << node.level << " point " << tree.pointIndices()[slot];
+    }
+    EXPECT_GE(s.radius, exact.sphere(i).radius * (1.0 - 1e-9)) << "node " << i;
+  }
+  EXPECT_EQ(tree.counters().spheres_updated, tree.nodeCount());
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, EnclosureTest, ::testing::ValuesIn(enclosureCases()),
+                         [](const auto& info) { return info.param.name; });
+
+TEST(EnclosureRandomised, ManySeedsEveryMode) {
+  for (std::uint64_t seed = 0; seed < 20; ++seed) {
+    const auto mode = static_cast<DeformationMode>(seed % 3);
+    ShapeMatchingConfig config = configFor(mode, 1 + static_cast<int>(seed % 4));
+    std::mt19937_64 engine(seed);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    config.stiffness = unit(engine);
+    config.beta = unit(engine);
+    ShapeMatchingBody body(sampleBox(400, {0.3, 0.2, 0.1}, seed), config);
+    SphereTree tree(body, {2 + static_cast<int>(seed % 3), 1 + static_cast<int>(seed % 9)});
+    Eigen::Matrix<double, 3, 9> warp = Eigen::Matrix<double, 3, 9>::Zero();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 9; ++c) warp(r, c) = (r == c ? 1.0 : 0.0) + 0.4 * (unit(engine) - 0.5);
+    }
+    body.setPositions(mapped(body.restPositions(), [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+      return warp * quadraticFeatures(p);
+    }));
+    for (int step = 0; step < 10; ++step) {
+      body.step(0.01 + 0.09 * unit(engine), Eigen::Vector3d(0, 0, -9.81));
+      tree.beginCycle();
+      for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
+        const Sphere& s = tree.sphere(i);
+        const auto& node = tree.node(i);
+        for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+          ASSERT_LE((body.positions()[tree.pointIndices()[slot]] - s.center).norm(), s.radius)
+              << "seed " << seed << " step " << step << " node " << i;
+        }
+      }
+    }
+  }
+}
+
+TEST(LazyUpdate, OnlyAskedSpheresAreComputedOncePerCycle) {
+  ShapeMatchingBody body(sampleBox(2000, {1, 1, 1}, 3), configFor(DeformationMode::kQuadratic, 2));
+  SphereTree tree(body, {2, 8});
+  tree.beginCycle();
+  tree.sphere(0);
+  tree.sphere(0);
+  // The root over two clusters is built from the two cluster roots.
+  EXPECT_EQ(tree.counters().spheres_updated, 3u);
+  EXPECT_EQ(tree.counters().norm_evaluations, 2u);
+  tree.beginCycle();
+  EXPECT_EQ(tree.counters().spheres_updated, 0u);
+}
+
+TEST(LazyUpdate, RigidObjectsComputeNoNorms) {
+  ShapeMatchingBody body(sampleBox(500, {1, 1, 1}, 3), configFor(DeformationMode::kRigid, 2));
+  SphereTree tree(body, {2, 8});
+  tree.beginCycle();
+  for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) tree.sphere(i);
+  EXPECT_EQ(tree.counters().norm_evaluations, 0u);
+}
+
+}  // namespace
+}  // namespace deformable_collision
