@@ -21,12 +21,14 @@ template <int N>
 SymmetricPseudoInverse<N> pseudoInverseSymmetric(const Eigen::Matrix<double, N, N>& matrix,
                                                  double relative_tolerance = 1e-10);
 
-/// Rotation part of the polar decomposition of `matrix`, by the iterative method of
-/// Mueller et al. 2016 ("A robust method to extract the rotational part of deformations"),
-/// warm-started from `rotation`, which is updated in place. It never produces NaN: a zero,
-/// rank-deficient or inverted matrix leaves a valid rotation (the closest one reachable from
-/// the warm start), which keeps degenerate clusters temporally coherent where an SVD would
-/// pick arbitrary axes.
+/// Rotation part of the polar decomposition of `matrix`: the rotation R maximising
+/// tr(R^T matrix), found by Newton steps on the rotation group (falling back to the scaled
+/// gradient step of Mueller et al. 2016 where the problem is not locally convex),
+/// warm-started from `rotation`, which is updated in place. Converges to machine precision
+/// in a few steps also for thin and flat stretches. It never produces NaN: a zero,
+/// rank-deficient or inverted matrix leaves a proper rotation reachable from the warm
+/// start, which keeps degenerate clusters temporally coherent where an SVD would pick
+/// arbitrary axes.
 void extractRotation(const Eigen::Matrix3d& matrix, Eigen::Quaterniond& rotation,
                      int max_iterations = 30);
 

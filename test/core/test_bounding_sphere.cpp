@@ -85,6 +85,9 @@ struct DegenerateCase {
   double expected_radius;  // < 0: compare with brute force
 };
 
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const DegenerateCase& c, std::ostream* os) { *os << c.name; }
+
 Points collinear(std::size_t n, const Eigen::Vector3d& offset, double spacing) {
   Points p;
   for (std::size_t i = 0; i < n; ++i) {

@@ -17,6 +17,9 @@ struct PartitionCase {
   double overlap_ratio;
 };
 
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const PartitionCase& c, std::ostream* os) { *os << c.name; }
+
 class PartitionTest : public ::testing::TestWithParam<PartitionCase> {};
 
 TEST_P(PartitionTest, CoversEveryPointBalancedAndDeterministic) {
@@ -72,6 +75,9 @@ struct BadPartitionCase {
   double overlap_ratio;
   const char* message_part;
 };
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const BadPartitionCase& c, std::ostream* os) { *os << c.name; }
 
 class BadPartitionTest : public ::testing::TestWithParam<BadPartitionCase> {};
 

@@ -49,6 +49,9 @@ struct RotationCase {
   Eigen::Vector3d stretch;  // symmetric positive factor applied after the rotation
 };
 
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const RotationCase& c, std::ostream* os) { *os << c.name; }
+
 class ExtractRotationTest : public ::testing::TestWithParam<RotationCase> {};
 
 TEST_P(ExtractRotationTest, RecoversTheRotationOfRotationTimesStretch) {
@@ -77,6 +80,9 @@ struct DegenerateCase {
   const char* name;
   Eigen::Matrix3d matrix;
 };
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const DegenerateCase& c, std::ostream* os) { *os << c.name; }
 
 class DegenerateRotationTest : public ::testing::TestWithParam<DegenerateCase> {};
 

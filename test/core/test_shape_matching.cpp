@@ -105,6 +105,9 @@ struct RecoveryCase {
   Eigen::Matrix<double, 3, 9> transform;  // applied to features of (x - rest centroid)
 };
 
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const RecoveryCase& c, std::ostream* os) { *os << c.name; }
+
 class ExactRecoveryTest : public ::testing::TestWithParam<RecoveryCase> {};
 
 TEST_P(ExactRecoveryTest, TrackedTransformIsRecovered) {
@@ -196,6 +199,9 @@ struct ConservationCase {
   int clusters;
   double damping;
 };
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const ConservationCase& c, std::ostream* os) { *os << c.name; }
 
 class ConservationTest : public ::testing::TestWithParam<ConservationCase> {};
 
@@ -345,6 +351,9 @@ struct StabilityCase {
   bool damped_volume_goals;
 };
 
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const StabilityCase& c, std::ostream* os) { *os << c.name; }
+
 Points line(std::size_t n) {
   Points p;
   for (std::size_t i = 0; i < n; ++i) p.emplace_back(0.1 * i, 0.05 * i, -0.02 * i);
@@ -492,6 +501,9 @@ struct BadConfigCase {
   std::function<void(ShapeMatchingConfig&, Points&)> spoil;
   const char* message_part;
 };
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const BadConfigCase& c, std::ostream* os) { *os << c.name; }
 
 class BadConfigTest : public ::testing::TestWithParam<BadConfigCase> {};
 

@@ -83,6 +83,9 @@ struct EnclosureCase {
   std::function<void(ShapeMatchingBody&)> deform;
 };
 
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const EnclosureCase& c, std::ostream* os) { *os << c.name; }
+
 using PointMap = std::function<Eigen::Vector3d(const Eigen::Vector3d&)>;
 
 Points mapped(const Points& points, const PointMap& map) {

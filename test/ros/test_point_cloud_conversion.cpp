@@ -77,6 +77,9 @@ struct GoodCase {
   std::uint32_t height;
 };
 
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const GoodCase& c, std::ostream* os) { *os << c.name; }
+
 class ReadGoodCloudTest : public ::testing::TestWithParam<GoodCase> {};
 
 TEST_P(ReadGoodCloudTest, ReadsEveryPointExactly) {
@@ -141,6 +144,9 @@ struct BadCase {
   std::function<void(PointCloud2&)> spoil;
   const char* message_part;
 };
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const BadCase& c, std::ostream* os) { *os << c.name; }
 
 class ReadBadCloudTest : public ::testing::TestWithParam<BadCase> {};
 
