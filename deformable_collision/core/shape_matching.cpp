@@ -292,6 +292,10 @@ void precomputeMoments(Cluster& cluster, DeformationMode mode, double point_mass
     second_moment += slotWeightKg(cluster, j, point_mass_kg) * cluster.rest_offsets[j].squaredNorm();
   }
   cluster.mean_features = feature_sum / cluster.total_weight_kg;
+  for (const auto& q : cluster.rest_offsets) {
+    const double norm = mode == DeformationMode::kQuadratic ? quadraticFeatures(q).norm() : q.norm();
+    cluster.max_feature_norm = std::max(cluster.max_feature_norm, norm);
+  }
 
   if (mode == DeformationMode::kLinear) {
     Eigen::Matrix3d moment = Eigen::Matrix3d::Zero();
@@ -471,6 +475,23 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
     precomputeMoments(cluster, config.mode, point_mass_kg_);
   }
 
+  point_slot_offsets_.assign(n + 1, 0);
+  for (const auto& cluster : clusters_) {
+    for (const auto i : cluster.points) ++point_slot_offsets_[i + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) point_slot_offsets_[i + 1] += point_slot_offsets_[i];
+  point_slots_.resize(point_slot_offsets_[n]);
+  {
+    std::vector<std::uint32_t> filled(point_slot_offsets_.begin(), point_slot_offsets_.end() - 1);
+    for (std::uint32_t k = 0; k < clusters_.size(); ++k) {
+      for (std::uint32_t slot = 0; slot < clusters_[k].points.size(); ++slot) {
+        point_slots_[filled[clusters_[k].points[slot]]++] = {k, slot};
+      }
+    }
+  }
+  cluster_displacement_scratch_.assign(clusters_.size(), 0.0);
+  cluster_touched_scratch_.assign(clusters_.size(), 0);
+
   deformations_.resize(clusters_.size());
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     deformations_[k].center_of_mass = clusters_[k].rest_center_of_mass;
@@ -548,6 +569,61 @@ void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positio
   track(positions);
 }
 
+
+void ShapeMatchingBody::setVelocities(const std::vector<Eigen::Vector3d>& velocities) {
+  if (velocities.size() != velocities_.size()) {
+    throw std::invalid_argument("got " + std::to_string(velocities.size()) +
+                                " velocities for an object of " +
+                                std::to_string(velocities_.size()) + " points");
+  }
+  for (std::size_t i = 0; i < velocities.size(); ++i) {
+    if (!velocities[i].allFinite()) {
+      throw std::invalid_argument("velocity " + std::to_string(i) + " is not finite");
+    }
+  }
+  velocities_ = velocities;
+  switch (config_.mode) {
+    case DeformationMode::kRigid:
+      sumCurrentState<DeformationMode::kRigid>();
+      break;
+    case DeformationMode::kLinear:
+      sumCurrentState<DeformationMode::kLinear>();
+      break;
+    case DeformationMode::kQuadratic:
+      sumCurrentState<DeformationMode::kQuadratic>();
+      break;
+  }
+}
+
+void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements,
+                                       double dt_s) {
+  if (!(dt_s > 0.0) || !std::isfinite(dt_s)) {
+    throw std::invalid_argument("time step dt_s = " + std::to_string(dt_s) +
+                                " must be finite and > 0");
+  }
+  for (const auto& d : displacements) {
+    if (d.point >= positions_.size()) {
+      throw std::invalid_argument("displaced point " + std::to_string(d.point) +
+                                  " is out of range (" + std::to_string(positions_.size()) +
+                                  " points)");
+    }
+    if (!d.displacement_m.allFinite()) {
+      throw std::invalid_argument("displacement of point " + std::to_string(d.point) +
+                                  " is not finite");
+    }
+  }
+  switch (config_.mode) {
+    case DeformationMode::kRigid:
+      applyDisplacements<DeformationMode::kRigid>(displacements, dt_s);
+      break;
+    case DeformationMode::kLinear:
+      applyDisplacements<DeformationMode::kLinear>(displacements, dt_s);
+      break;
+    case DeformationMode::kQuadratic:
+      applyDisplacements<DeformationMode::kQuadratic>(displacements, dt_s);
+      break;
+  }
+}
 
 template <DeformationMode Mode, bool Damped>
 void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2) {
@@ -776,6 +852,53 @@ void ShapeMatchingBody::measureFitResiduals() {
       deviation_squared = std::max(deviation_squared, e.squaredNorm());
     }
     deformations_[k].goal_deviation_bound_m = std::sqrt(deviation_squared);
+  }
+}
+
+template <DeformationMode Mode>
+void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>& displacements,
+                                           double dt_s) {
+  constexpr int K = kFeatureCount<Mode>;
+  for (const auto& d : displacements) {
+    const Eigen::Vector3d& dx = d.displacement_m;
+    const Eigen::Vector3d dv = dx / dt_s;
+    Eigen::Vector3d& x = positions_[d.point];
+    Eigen::Vector3d& v = velocities_[d.point];
+    for (std::uint32_t m = point_slot_offsets_[d.point]; m < point_slot_offsets_[d.point + 1]; ++m) {
+      const auto [k, slot] = point_slots_[m];
+      ClusterSums& sums = cluster_sums_[k];
+      const double w = slotWeightKg(clusters_[k], slot, point_mass_kg_);
+      const Eigen::Vector3d p = x - sums.reference;
+      const Eigen::Vector3d moved = p + dx;
+      const Eigen::Vector3d moved_velocity = v + dv;
+      sums.offset += w * dx;
+      sums.offset_features.template leftCols<K>().noalias() +=
+          (w * dx) * featuresOf<K>(clusters_[k].rest_offsets[slot]).transpose();
+      sums.momentum += w * dv;
+      sums.angular_momentum += w * (moved.cross(moved_velocity) - p.cross(v));
+      sums.second_moment += w * (moved * moved.transpose() - p * p.transpose());
+      cluster_touched_scratch_[k] = 1;
+      cluster_displacement_scratch_[k] = std::max(cluster_displacement_scratch_[k], dx.norm());
+    }
+    x += dx;
+    v += dv;
+  }
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    if (!cluster_touched_scratch_[k]) continue;
+    ClusterDeformation& deformation = deformations_[k];
+    const Eigen::Matrix<double, 3, K> old_transform = deformation.transform.template leftCols<K>();
+    const Eigen::Vector3d old_translation = deformation.translation;
+    setGoalTransform<K>(clusters_[k], fitCluster<Mode>(clusters_[k], cluster_sums_[k], deformation),
+                        deformation);
+    // Every fitted point moves by at most |dT| |q~| + |dt| with the refit, and a displaced
+    // point by its displacement too: the residual stays bounded without visiting the cluster.
+    const double refit_motion =
+        (deformation.transform.template leftCols<K>() - old_transform).norm() *
+            clusters_[k].max_feature_norm +
+        (deformation.translation - old_translation).norm();
+    deformation.goal_deviation_bound_m += cluster_displacement_scratch_[k] + refit_motion;
+    cluster_touched_scratch_[k] = 0;
+    cluster_displacement_scratch_[k] = 0.0;
   }
 }
 

@@ -54,6 +54,15 @@ struct Cluster {
   /// N with T = A_pq A_qq^+ + R N: directions the rest shape does not span (a flat or thin
   /// cluster) follow the rotation instead of collapsing. Zero for a well-spread cluster.
   Eigen::Matrix<double, 3, 9> null_completion = Eigen::Matrix<double, 3, 9>::Zero();
+  /// Largest |q~_j| over the cluster's points (first 3 features unless quadratic): how far
+  /// a change of the transform can move a fitted point.
+  double max_feature_norm = 0.0;
+};
+
+/// A displacement of one point, from a collision response.
+struct PointDisplacement {
+  std::uint32_t point = 0;
+  Eigen::Vector3d displacement_m = Eigen::Vector3d::Zero();
 };
 
 /// What the hierarchy update of one cluster needs: the shape-matching registration of the
@@ -109,10 +118,23 @@ class ShapeMatchingBody {
   /// @throw std::invalid_argument if the size differs; the state is then unchanged.
   std::size_t track(const std::vector<Eigen::Vector3d>& observed_points);
 
-  /// Places the points (for a deformed start or a response) and sets their velocities to
-  /// zero. The per-cluster outputs are refreshed by registering the new positions.
+  /// Places the points (a deformed start, a pose) and sets their velocities to zero. The
+  /// per-cluster outputs are refreshed by registering the new positions.
   /// @throw std::invalid_argument if the size differs or a point is not finite.
   void setPositions(const std::vector<Eigen::Vector3d>& positions);
+
+  /// Sets every point's velocity (an initial condition).
+  /// @throw std::invalid_argument if the size differs or a velocity is not finite.
+  void setVelocities(const std::vector<Eigen::Vector3d>& velocities);
+
+  /// Moves points by a collision response, changing their velocities by displacement / dt_s
+  /// as position-based dynamics does, so the next step keeps the separation. The clusters
+  /// holding them are refitted from incrementally updated sums, and their residual bounds
+  /// grow by the displacement and by how far the refit moves any goal: the work is
+  /// proportional to the points moved plus the clusters touched, not to the object.
+  /// @throw std::invalid_argument if a point index is out of range, a displacement is not
+  ///        finite or dt_s is not finite and > 0; the state is then unchanged.
+  void displacePoints(const std::vector<PointDisplacement>& displacements, double dt_s);
 
   const ShapeMatchingConfig& config() const { return config_; }
   std::size_t pointCount() const { return positions_.size(); }
@@ -133,6 +155,8 @@ class ShapeMatchingBody {
   void sumCurrentState();
   template <DeformationMode Mode>
   void measureFitResiduals();
+  template <DeformationMode Mode>
+  void applyDisplacements(const std::vector<PointDisplacement>& displacements, double dt_s);
 
   ShapeMatchingConfig config_;
   double point_mass_kg_ = 0.0;
@@ -143,6 +167,12 @@ class ShapeMatchingBody {
   std::vector<ClusterDeformation> deformations_;
   std::vector<std::uint32_t> membership_counts_;  ///< Clusters holding each point.
   std::vector<std::uint32_t> shared_points_;     ///< Points held by more than one cluster.
+  /// Clusters and slots holding each point: those of point i are
+  /// point_slots_[point_slot_offsets_[i] .. point_slot_offsets_[i + 1]).
+  std::vector<std::uint32_t> point_slot_offsets_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> point_slots_;
+  std::vector<double> cluster_displacement_scratch_;  ///< Largest displacement per cluster.
+  std::vector<std::uint8_t> cluster_touched_scratch_;
   std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
   std::vector<Eigen::Vector3d> target_velocity_sums_;  ///< Scratch for shared points' damping.
   std::vector<ClusterSums> cluster_sums_;  ///< Of the current positions and velocities.

@@ -307,6 +307,96 @@ TEST(GoalDeviationBound, ExcludesTheObjectsOwnMotion) {
 }
 
 // ---------------------------------------------------------------------------------------
+// Collision responses move points; the fit follows and the bound stays sound.
+
+TEST(DisplacePoints, BoundStaysSoundAndMomentumFollowsTheKicks) {
+  for (const auto mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    ShapeMatchingBody body(sampleEllipsoid(800, {0.4, 0.3, 0.2}, 40), configFor(mode, 3));
+    std::mt19937_64 engine(41);
+    std::normal_distribution<double> push(0.0, 0.01);
+    std::uniform_int_distribution<std::uint32_t> pick(0, 799);
+    const double dt = 0.01;
+    for (int round = 0; round < 20; ++round) {
+      body.step(dt, Eigen::Vector3d(0, 0, -9.81));
+      std::vector<PointDisplacement> kicks;
+      Eigen::Vector3d expected_momentum = Eigen::Vector3d::Zero();
+      for (const auto& v : body.velocities()) expected_momentum += body.pointMassKg() * v;
+      for (int i = 0; i < 50; ++i) {
+        kicks.push_back({pick(engine), Eigen::Vector3d(push(engine), push(engine), push(engine))});
+        expected_momentum += body.pointMassKg() * kicks.back().displacement_m / dt;
+      }
+      body.displacePoints(kicks, dt);
+      ASSERT_LE(worstBoundExcess(body), 1e-12) << toString(mode) << " round " << round;
+      Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+      for (const auto& v : body.velocities()) momentum += body.pointMassKg() * v;
+      EXPECT_LT((momentum - expected_momentum).norm(), 1e-9) << toString(mode);
+    }
+    for (int s = 0; s < 100; ++s) body.step(dt, Eigen::Vector3d::Zero());
+    for (const auto& x : body.positions()) ASSERT_TRUE(x.allFinite());
+  }
+}
+
+TEST(DisplacePoints, RefitThatMovesUndisplacedPointsIsBounded) {
+  // A least-squares refit can move an undisplaced, high-leverage point farther than any
+  // displacement: 400 points in a small ball kinked by +-delta, and one point far out on
+  // the kink's axis, which the refitted shear carries about 8 delta.
+  Points rest = sampleEllipsoid(400, {0.05, 0.05, 0.05}, 42);
+  rest.emplace_back(0.45, 0.0, 0.0);
+  ShapeMatchingBody body(rest, configFor(DeformationMode::kLinear, 1));
+  const double delta = 1e-3;
+  std::vector<PointDisplacement> kink;
+  for (std::uint32_t i = 0; i < 400; ++i) {
+    kink.push_back({i, Eigen::Vector3d(0.0, 0.0, rest[i].x() > 0 ? delta : -delta)});
+  }
+  body.displacePoints(kink, 0.01);
+  const auto& deformation = body.deformation(0);
+  const Eigen::Vector3d outlier_goal =
+      deformation.transform * quadraticFeatures(body.cluster(0).rest_offsets.back()) +
+      deformation.translation;
+  ASSERT_GT((outlier_goal - rest.back()).norm(), 3 * delta) << "the scene must make the refit reach";
+  EXPECT_LE(worstBoundExcess(body), 1e-12);
+}
+
+TEST(DisplacePoints, BadInputThrowsAndLeavesTheStateAlone) {
+  ShapeMatchingBody body(sampleBox(30, {0.1, 0.1, 0.1}, 2), ShapeMatchingConfig{});
+  const Points before = body.positions();
+  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(0.1, 0, 0)}, {30, Eigen::Vector3d::Zero()}},
+                                   0.01),
+               std::invalid_argument);
+  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(std::nan(""), 0, 0)}}, 0.01),
+               std::invalid_argument);
+  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(0.1, 0, 0)}}, 0.0), std::invalid_argument);
+  EXPECT_EQ(body.positions(), before);
+}
+
+TEST(SetVelocities, SpinIsKeptByTheDampingAndMomentumConserved) {
+  ShapeMatchingConfig config = configFor(DeformationMode::kLinear, 2);
+  config.damping = 0.5;
+  const Points rest = sampleBox(500, {0.3, 0.2, 0.1}, 3);
+  ShapeMatchingBody body(rest, config);
+  const Eigen::Vector3d spin(0.0, 0.0, 2.0);
+  const Eigen::Vector3d center = centroid(rest);
+  Points velocities;
+  for (const auto& p : rest) velocities.push_back(spin.cross(p - center));
+  body.setVelocities(velocities);
+  for (int s = 0; s < 50; ++s) body.step(0.01, Eigen::Vector3d::Zero());
+  // A rigid spin is no deformation: heavy damping must leave it (and its energy) alone.
+  Eigen::Vector3d angular = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < body.pointCount(); ++i) {
+    angular += body.pointMassKg() * (body.positions()[i] - centroid(body.positions()))
+                                        .cross(body.velocities()[i]);
+  }
+  Eigen::Vector3d initial = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    initial += body.pointMassKg() * (rest[i] - center).cross(velocities[i]);
+  }
+  EXPECT_LT((angular - initial).norm(), 1e-9 * initial.norm());
+  EXPECT_LT(shapeError(body), 1e-3);
+  EXPECT_THROW(body.setVelocities(Points(499, Eigen::Vector3d::Zero())), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------
 // Tracking with unobserved points.
 
 TEST(Track, UnobservedPointsFollowTheFit) {
