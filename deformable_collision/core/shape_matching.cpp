@@ -570,6 +570,42 @@ void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positio
 }
 
 
+Eigen::Vector3d ShapeMatchingBody::meanVelocity() const {
+  // Each cluster holds a share of its points' masses; the shares add up to the object.
+  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
+  for (const auto& sums : cluster_sums_) momentum += sums.momentum;
+  return momentum / config_.mass_kg;
+}
+
+void ShapeMatchingBody::translate(const Eigen::Vector3d& offset_m) {
+  if (!offset_m.allFinite()) throw std::invalid_argument("translation is not finite");
+  for (auto& x : positions_) x += offset_m;
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    const Cluster& cluster = clusters_[k];
+    ClusterSums& sums = cluster_sums_[k];
+    const double mass = cluster.total_weight_kg;
+    sums.second_moment += sums.offset * offset_m.transpose() + offset_m * sums.offset.transpose() +
+                          mass * offset_m * offset_m.transpose();
+    sums.angular_momentum += offset_m.cross(sums.momentum);
+    sums.offset_features += (mass * offset_m) * cluster.mean_features.transpose();
+    sums.offset += mass * offset_m;
+    deformations_[k].center_of_mass += offset_m;
+    deformations_[k].translation += offset_m;
+  }
+}
+
+void ShapeMatchingBody::addVelocity(const Eigen::Vector3d& velocity_change_mps) {
+  if (!velocity_change_mps.allFinite()) {
+    throw std::invalid_argument("velocity change is not finite");
+  }
+  for (auto& v : velocities_) v += velocity_change_mps;
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    ClusterSums& sums = cluster_sums_[k];
+    sums.momentum += clusters_[k].total_weight_kg * velocity_change_mps;
+    sums.angular_momentum += sums.offset.cross(velocity_change_mps);
+  }
+}
+
 void ShapeMatchingBody::setVelocities(const std::vector<Eigen::Vector3d>& velocities) {
   if (velocities.size() != velocities_.size()) {
     throw std::invalid_argument("got " + std::to_string(velocities.size()) +
@@ -595,32 +631,27 @@ void ShapeMatchingBody::setVelocities(const std::vector<Eigen::Vector3d>& veloci
   }
 }
 
-void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements,
-                                       double dt_s) {
-  if (!(dt_s > 0.0) || !std::isfinite(dt_s)) {
-    throw std::invalid_argument("time step dt_s = " + std::to_string(dt_s) +
-                                " must be finite and > 0");
-  }
+void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements) {
   for (const auto& d : displacements) {
     if (d.point >= positions_.size()) {
       throw std::invalid_argument("displaced point " + std::to_string(d.point) +
                                   " is out of range (" + std::to_string(positions_.size()) +
                                   " points)");
     }
-    if (!d.displacement_m.allFinite()) {
-      throw std::invalid_argument("displacement of point " + std::to_string(d.point) +
-                                  " is not finite");
+    if (!d.displacement_m.allFinite() || !d.velocity_change_mps.allFinite()) {
+      throw std::invalid_argument("displacement or velocity change of point " +
+                                  std::to_string(d.point) + " is not finite");
     }
   }
   switch (config_.mode) {
     case DeformationMode::kRigid:
-      applyDisplacements<DeformationMode::kRigid>(displacements, dt_s);
+      applyDisplacements<DeformationMode::kRigid>(displacements);
       break;
     case DeformationMode::kLinear:
-      applyDisplacements<DeformationMode::kLinear>(displacements, dt_s);
+      applyDisplacements<DeformationMode::kLinear>(displacements);
       break;
     case DeformationMode::kQuadratic:
-      applyDisplacements<DeformationMode::kQuadratic>(displacements, dt_s);
+      applyDisplacements<DeformationMode::kQuadratic>(displacements);
       break;
   }
 }
@@ -856,12 +887,11 @@ void ShapeMatchingBody::measureFitResiduals() {
 }
 
 template <DeformationMode Mode>
-void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>& displacements,
-                                           double dt_s) {
+void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>& displacements) {
   constexpr int K = kFeatureCount<Mode>;
   for (const auto& d : displacements) {
     const Eigen::Vector3d& dx = d.displacement_m;
-    const Eigen::Vector3d dv = dx / dt_s;
+    const Eigen::Vector3d& dv = d.velocity_change_mps;
     Eigen::Vector3d& x = positions_[d.point];
     Eigen::Vector3d& v = velocities_[d.point];
     for (std::uint32_t m = point_slot_offsets_[d.point]; m < point_slot_offsets_[d.point + 1]; ++m) {

@@ -59,10 +59,11 @@ struct Cluster {
   double max_feature_norm = 0.0;
 };
 
-/// A displacement of one point, from a collision response.
+/// A change of one point's position and velocity, from a collision response.
 struct PointDisplacement {
   std::uint32_t point = 0;
   Eigen::Vector3d displacement_m = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity_change_mps = Eigen::Vector3d::Zero();
 };
 
 /// What the hierarchy update of one cluster needs: the shape-matching registration of the
@@ -127,14 +128,26 @@ class ShapeMatchingBody {
   /// @throw std::invalid_argument if the size differs or a velocity is not finite.
   void setVelocities(const std::vector<Eigen::Vector3d>& velocities);
 
-  /// Moves points by a collision response, changing their velocities by displacement / dt_s
-  /// as position-based dynamics does, so the next step keeps the separation. The clusters
-  /// holding them are refitted from incrementally updated sums, and their residual bounds
-  /// grow by the displacement and by how far the refit moves any goal: the work is
-  /// proportional to the points moved plus the clusters touched, not to the object.
-  /// @throw std::invalid_argument if a point index is out of range, a displacement is not
-  ///        finite or dt_s is not finite and > 0; the state is then unchanged.
-  void displacePoints(const std::vector<PointDisplacement>& displacements, double dt_s);
+  /// Moves points and changes their velocities by a collision response. The clusters holding
+  /// them are refitted from incrementally updated sums, and their residual bounds grow by
+  /// the displacement and by how far the refit moves any goal: the work is proportional to
+  /// the points moved plus the clusters touched, not to the object.
+  /// @throw std::invalid_argument if a point index is out of range or a change is not
+  ///        finite; the state is then unchanged.
+  void displacePoints(const std::vector<PointDisplacement>& displacements);
+
+  /// Moves every point by the same offset (a collision response on the whole object): the
+  /// fit moves along and its residual is unchanged; the sums follow in O(clusters).
+  /// @throw std::invalid_argument if the offset is not finite.
+  void translate(const Eigen::Vector3d& offset_m);
+
+  /// Adds the same velocity to every point (an impulse on the whole object); the fit sums
+  /// follow in O(clusters).
+  /// @throw std::invalid_argument if the velocity is not finite.
+  void addVelocity(const Eigen::Vector3d& velocity_change_mps);
+
+  /// Mass-weighted mean velocity of the object, from the fit sums (O(clusters)).
+  Eigen::Vector3d meanVelocity() const;
 
   const ShapeMatchingConfig& config() const { return config_; }
   std::size_t pointCount() const { return positions_.size(); }
@@ -156,7 +169,7 @@ class ShapeMatchingBody {
   template <DeformationMode Mode>
   void measureFitResiduals();
   template <DeformationMode Mode>
-  void applyDisplacements(const std::vector<PointDisplacement>& displacements, double dt_s);
+  void applyDisplacements(const std::vector<PointDisplacement>& displacements);
 
   ShapeMatchingConfig config_;
   double point_mass_kg_ = 0.0;

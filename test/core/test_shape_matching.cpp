@@ -323,10 +323,11 @@ TEST(DisplacePoints, BoundStaysSoundAndMomentumFollowsTheKicks) {
       Eigen::Vector3d expected_momentum = Eigen::Vector3d::Zero();
       for (const auto& v : body.velocities()) expected_momentum += body.pointMassKg() * v;
       for (int i = 0; i < 50; ++i) {
-        kicks.push_back({pick(engine), Eigen::Vector3d(push(engine), push(engine), push(engine))});
-        expected_momentum += body.pointMassKg() * kicks.back().displacement_m / dt;
+        const Eigen::Vector3d shift(push(engine), push(engine), push(engine));
+        kicks.push_back({pick(engine), shift, shift / dt});
+        expected_momentum += body.pointMassKg() * kicks.back().velocity_change_mps;
       }
-      body.displacePoints(kicks, dt);
+      body.displacePoints(kicks);
       ASSERT_LE(worstBoundExcess(body), 1e-12) << toString(mode) << " round " << round;
       Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
       for (const auto& v : body.velocities()) momentum += body.pointMassKg() * v;
@@ -347,9 +348,10 @@ TEST(DisplacePoints, RefitThatMovesUndisplacedPointsIsBounded) {
   const double delta = 1e-3;
   std::vector<PointDisplacement> kink;
   for (std::uint32_t i = 0; i < 400; ++i) {
-    kink.push_back({i, Eigen::Vector3d(0.0, 0.0, rest[i].x() > 0 ? delta : -delta)});
+    kink.push_back({i, Eigen::Vector3d(0.0, 0.0, rest[i].x() > 0 ? delta : -delta),
+                    Eigen::Vector3d::Zero()});
   }
-  body.displacePoints(kink, 0.01);
+  body.displacePoints(kink);
   const auto& deformation = body.deformation(0);
   const Eigen::Vector3d outlier_goal =
       deformation.transform * quadraticFeatures(body.cluster(0).rest_offsets.back()) +
@@ -361,12 +363,13 @@ TEST(DisplacePoints, RefitThatMovesUndisplacedPointsIsBounded) {
 TEST(DisplacePoints, BadInputThrowsAndLeavesTheStateAlone) {
   ShapeMatchingBody body(sampleBox(30, {0.1, 0.1, 0.1}, 2), ShapeMatchingConfig{});
   const Points before = body.positions();
-  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(0.1, 0, 0)}, {30, Eigen::Vector3d::Zero()}},
-                                   0.01),
+  const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(0.1, 0, 0), zero}, {30, zero, zero}}),
                std::invalid_argument);
-  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(std::nan(""), 0, 0)}}, 0.01),
+  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(std::nan(""), 0, 0), zero}}),
                std::invalid_argument);
-  EXPECT_THROW(body.displacePoints({{3, Eigen::Vector3d(0.1, 0, 0)}}, 0.0), std::invalid_argument);
+  EXPECT_THROW(body.displacePoints({{3, zero, Eigen::Vector3d(0, std::nan(""), 0)}}),
+               std::invalid_argument);
   EXPECT_EQ(body.positions(), before);
 }
 
