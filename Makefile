@@ -18,11 +18,12 @@ test: build
 	@bash scripts/run_tests "$(WORKSPACE)" "$(JOBS)"
 
 demo: build
-	@"$(WORKSPACE)/devel/lib/deformable_collision/core_demo"
+	@"$(WORKSPACE)/devel/lib/deformable_collision/core_demo" three_objects 300
 
 bench: build
 	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_shape_matching" --benchmark_counters_tabular=true
 	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_collision" 80000 20
+	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_scene" 150 20
 
 clean:
 	rm -rf build

@@ -1,0 +1,219 @@
+#include "deformable_collision/core/demo_scenes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include "deformable_collision/core/shapes.h"
+
+namespace deformable_collision {
+namespace {
+
+std::vector<Eigen::Vector3d> placed(std::vector<Eigen::Vector3d> points,
+                                    const Eigen::Vector3d& at) {
+  for (auto& p : points) p += at;
+  return points;
+}
+
+ObjectConfig softObject(const std::string& name, DeformationMode mode, int clusters,
+                        double mass_kg) {
+  ObjectConfig object;
+  object.name = name;
+  object.kind = ObjectKind::kDynamic;
+  object.shape.mode = mode;
+  object.shape.clusters = clusters;
+  object.shape.stiffness = 0.5;
+  object.shape.beta = 0.6;
+  object.shape.damping = 0.1;
+  object.shape.mass_kg = mass_kg;
+  return object;
+}
+
+ObjectConfig fixedObject(const std::string& name, ObjectKind kind) {
+  ObjectConfig object;
+  object.name = name;
+  object.kind = kind;
+  object.shape.mode = DeformationMode::kRigid;
+  return object;
+}
+
+/// A slab of points on a regular grid (static floors and walls need no randomness).
+std::vector<Eigen::Vector3d> slab(const Eigen::Vector3d& half_extents, double spacing,
+                                  const Eigen::Vector3d& center) {
+  std::vector<Eigen::Vector3d> points;
+  const auto steps = [&](double half) { return std::max(1, int(std::lround(2 * half / spacing))); };
+  const int nx = steps(half_extents.x()), ny = steps(half_extents.y()), nz = steps(half_extents.z());
+  for (int i = 0; i <= nx; ++i) {
+    for (int j = 0; j <= ny; ++j) {
+      for (int k = 0; k <= nz; ++k) {
+        const Eigen::Vector3d unit(nx ? double(i) / nx : 0.5, ny ? double(j) / ny : 0.5,
+                                   nz ? double(k) / nz : 0.5);
+        points.push_back(center + (2 * unit - Eigen::Vector3d::Ones()).cwiseProduct(half_extents));
+      }
+    }
+  }
+  return points;
+}
+
+void requirePoints(std::size_t points, std::size_t least, DemoScene scene) {
+  if (points < least) {
+    throw std::invalid_argument(std::string("scene ") + toString(scene) + " needs at least " +
+                                std::to_string(least) + " points, got " + std::to_string(points));
+  }
+}
+
+void buildTwoObjects(Scene& scene, std::size_t points) {
+  const std::size_t each = points / 2;
+  const auto a = scene.addObject(softObject("ball_a", DeformationMode::kQuadratic, 4, 2.0),
+                                 placed(sampleEllipsoid(each, {0.3, 0.25, 0.25}, 1), {-0.45, 0, 0}));
+  const auto b = scene.addObject(softObject("ball_b", DeformationMode::kQuadratic, 4, 2.0),
+                                 placed(sampleEllipsoid(each, {0.3, 0.25, 0.25}, 2), {0.45, 0.05, 0}));
+  for (const auto& [object, speed] : {std::pair{a, 1.0}, std::pair{b, -1.0}}) {
+    std::vector<Eigen::Vector3d> velocity(scene.body(object).pointCount(),
+                                          Eigen::Vector3d(speed, 0, 0));
+    scene.setVelocities(object, velocity);
+  }
+}
+
+void buildPile(Scene& scene, std::size_t points) {
+  constexpr int kObjects = 300;
+  const std::size_t each = points / kObjects;
+  const double half = 0.6;
+  scene.addObject(fixedObject("floor", ObjectKind::kStatic), slab({half, half, 0.01}, 0.02, {0, 0, -0.01}));
+  // Walls higher than the initial stack (about 1.6 m), so nothing falls out over them.
+  scene.addObject(fixedObject("wall_x_minus", ObjectKind::kStatic),
+                  slab({0.01, half, 1.0}, 0.02, {-half - 0.01, 0, 1.0}));
+  scene.addObject(fixedObject("wall_x_plus", ObjectKind::kStatic),
+                  slab({0.01, half, 1.0}, 0.02, {half + 0.01, 0, 1.0}));
+  scene.addObject(fixedObject("wall_y_minus", ObjectKind::kStatic),
+                  slab({half, 0.01, 1.0}, 0.02, {0, -half - 0.01, 1.0}));
+  scene.addObject(fixedObject("wall_y_plus", ObjectKind::kStatic),
+                  slab({half, 0.01, 1.0}, 0.02, {0, half + 0.01, 1.0}));
+  std::mt19937_64 engine(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  // 6 x 6 columns, stacked as high as needed, each object in its own 0.18 m cell.
+  for (int i = 0; i < kObjects; ++i) {
+    const int column = i % 36;
+    const int layer = i / 36;
+    const Eigen::Vector3d at(-0.45 + 0.18 * (column % 6), -0.45 + 0.18 * (column / 6),
+                             0.12 + 0.18 * layer);
+    const Eigen::Vector3d radii(0.05 + 0.03 * unit(engine), 0.05 + 0.03 * unit(engine),
+                                0.04 + 0.03 * unit(engine));
+    const DeformationMode mode = i % 2 ? DeformationMode::kQuadratic : DeformationMode::kLinear;
+    scene.addObject(softObject("object_" + std::to_string(i), mode, 1, 0.2),
+                    placed(sampleEllipsoid(each, radii, 100 + i), at));
+  }
+}
+
+void buildThreeObjects(Scene& scene, std::size_t points) {
+  // A 1 m square floor of 2 cm spacing, 2 cm thick (5202 points); the rest go to the soft
+  // objects.
+  const auto floor_grid = slab({0.5, 0.5, 0.01}, 0.02, {0, 0, -0.01});
+  const std::size_t soft = points - std::min(points, floor_grid.size());
+  scene.addObject(fixedObject("floor", ObjectKind::kStatic), floor_grid);
+  scene.addObject(softObject("ball", DeformationMode::kQuadratic, 3, 1.0),
+                  placed(sampleEllipsoid(soft / 2, {0.2, 0.2, 0.2}, 3), {-0.15, 0, 0.3}));
+  scene.addObject(softObject("bar", DeformationMode::kLinear, 4, 1.0),
+                  placed(sampleBox(soft - soft / 2, {0.4, 0.08, 0.06}, 4), {0.05, 0, 0.7}));
+}
+
+void buildGripper(Scene& scene, std::size_t points) {
+  scene.addObject(fixedObject("floor", ObjectKind::kStatic), slab({0.4, 0.4, 0.01}, 0.02, {0, 0, -0.01}));
+  scene.addObject(softObject("fruit", DeformationMode::kQuadratic, 3, 0.3),
+                  placed(sampleEllipsoid(points, {0.1, 0.1, 0.1}, 5), {0, 0, 0.105}));
+  scene.addObject(fixedObject("jaw_left", ObjectKind::kKinematic), slab({0.02, 0.08, 0.08}, 0.01, {0, 0, 0}));
+  scene.addObject(fixedObject("jaw_right", ObjectKind::kKinematic), slab({0.02, 0.08, 0.08}, 0.01, {0, 0, 0}));
+  driveDemoScene(DemoScene::kGripper, scene, 0.0);
+}
+
+}  // namespace
+
+std::optional<DemoScene> parseDemoScene(const std::string& name) {
+  for (const auto scene : {DemoScene::kTwoObjects, DemoScene::kPile, DemoScene::kThreeObjects,
+                           DemoScene::kGripper}) {
+    if (name == toString(scene)) return scene;
+  }
+  return std::nullopt;
+}
+
+const char* toString(DemoScene scene) {
+  switch (scene) {
+    case DemoScene::kTwoObjects:
+      return "two_objects";
+    case DemoScene::kPile:
+      return "pile";
+    case DemoScene::kThreeObjects:
+      return "three_objects";
+    case DemoScene::kGripper:
+      return "gripper";
+  }
+  return "unknown";
+}
+
+/// About the point spacing of the scene's objects at the default point count.
+double sceneContactDistance(DemoScene scene) {
+  switch (scene) {
+    case DemoScene::kTwoObjects:
+      return 0.025;
+    case DemoScene::kPile:
+      return 0.02;
+    case DemoScene::kThreeObjects:
+      return 0.02;
+    case DemoScene::kGripper:
+      return 0.012;
+  }
+  return 0.0;
+}
+
+std::size_t defaultPointCount(DemoScene scene) {
+  switch (scene) {
+    case DemoScene::kTwoObjects:
+      return 16000;
+    case DemoScene::kPile:
+      return 131000;
+    case DemoScene::kThreeObjects:
+      return 19000;
+    case DemoScene::kGripper:
+      return 10000;
+  }
+  return 0;
+}
+
+std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points, SceneConfig config) {
+  if (points == 0) points = defaultPointCount(scene);
+  const std::size_t least[] = {20, 300 * 10, 60, 50};
+  requirePoints(points, least[static_cast<int>(scene)], scene);
+  config.gravity_mps2 = scene == DemoScene::kTwoObjects ? Eigen::Vector3d::Zero()
+                                                        : Eigen::Vector3d(0.0, 0.0, -9.81);
+  config.contact_distance_m = std::max(config.contact_distance_m, sceneContactDistance(scene));
+  auto built = std::make_unique<Scene>(config);
+  switch (scene) {
+    case DemoScene::kTwoObjects:
+      buildTwoObjects(*built, points);
+      break;
+    case DemoScene::kPile:
+      buildPile(*built, points);
+      break;
+    case DemoScene::kThreeObjects:
+      buildThreeObjects(*built, points);
+      break;
+    case DemoScene::kGripper:
+      buildGripper(*built, points);
+      break;
+  }
+  return built;
+}
+
+void driveDemoScene(DemoScene scene, Scene& built, double time_s) {
+  if (scene != DemoScene::kGripper) return;
+  // The jaws close from 0.2 m apart to 0.12 m (on a 0.2 m fruit) over two seconds, then hold.
+  const double gap = 0.2 - 0.04 * std::min(time_s, 2.0);
+  for (const auto& [name, side] : {std::pair{"jaw_left", -1.0}, std::pair{"jaw_right", 1.0}}) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.translation() = Eigen::Vector3d(side * (gap / 2 + 0.02), 0.0, 0.1);
+    built.setPose(*built.findObject(name), pose);
+  }
+}
+
+}  // namespace deformable_collision

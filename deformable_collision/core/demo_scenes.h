@@ -1,0 +1,39 @@
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "deformable_collision/core/scene.h"
+
+namespace deformable_collision {
+
+/// Built-in synthetic scenes, deterministic (fixed seeds), after the paper's section 7.
+enum class DemoScene {
+  kTwoObjects,    ///< S1: two soft balls thrown at each other, no gravity.
+  kPile,          ///< S2: 300 soft objects falling into a box and onto each other.
+  kThreeObjects,  ///< S3: a soft ball and a soft bar dropped on a floor.
+  kGripper,       ///< A soft ball on a floor, squeezed by the two rigid jaws of a gripper.
+};
+
+/// "two_objects", "pile", "three_objects" or "gripper"; std::nullopt otherwise.
+std::optional<DemoScene> parseDemoScene(const std::string& name);
+const char* toString(DemoScene scene);
+
+/// Points in the scene's soft objects when none are asked for: S1 16k, S2 131k, S3 19k in
+/// all three objects, gripper 10k.
+std::size_t defaultPointCount(DemoScene scene);
+
+/// Builds `scene` with about `points` points in its soft objects (0: the default count),
+/// on `config`. The scene sets gravity and, unless `config` asks for more, a contact
+/// distance of about its point spacing at the default count: point clouds are porous to
+/// each other at any shorter distance.
+/// @throw std::invalid_argument if points is too small for the scene's objects.
+std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points = 0,
+                                     SceneConfig config = SceneConfig{});
+
+/// Moves the kinematic objects of a built-in scene to where they are at `time_s` (the
+/// gripper's jaws); nothing for the others.
+void driveDemoScene(DemoScene scene, Scene& built, double time_s);
+
+}  // namespace deformable_collision

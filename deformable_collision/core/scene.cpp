@@ -1,0 +1,663 @@
+#include "deformable_collision/core/scene.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace deformable_collision {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double millisecondsBetween(Clock::time_point from, Clock::time_point to) {
+  return std::chrono::duration<double, std::milli>(to - from).count();
+}
+
+}  // namespace
+
+struct Scene::Object {
+  Object(const ObjectConfig& object_config, std::vector<Eigen::Vector3d> rest_points,
+         const SphereTreeConfig& tree_config)
+      : config(object_config),
+        body(std::move(rest_points), object_config.shape),
+        tree(body, tree_config) {
+    if (config.kind == ObjectKind::kDynamic) {
+      displacement_sums.assign(body.pointCount(), Eigen::Vector3d::Zero());
+      velocity_change_sums.assign(body.pointCount(), Eigen::Vector3d::Zero());
+      displacement_counts.assign(body.pointCount(), 0);
+    }
+  }
+
+  bool dynamic() const { return config.kind == ObjectKind::kDynamic; }
+
+  /// Rest-shape plane of every node (objects the response never moves). A node's own points
+  /// may be too few to span a plane (a leaf of a two-layer floor is a small cube), so it
+  /// takes the normal of its nearest ancestor that is clearly planar (16 points or more,
+  /// least spread under a tenth of the middle one), or the root's; the half thickness is that of its own points
+  /// around its sphere's centre, where the plane is anchored.
+  void computeNodePlanes() {
+    const std::uint32_t count = static_cast<std::uint32_t>(tree.nodeCount());
+    std::vector<std::uint32_t> parent(count, 0);
+    for (std::uint32_t n = 0; n < count; ++n) {
+      const SphereNode& node = tree.node(n);
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) parent[c] = n;
+    }
+    const auto& rest = body.restPositions();
+    std::vector<Eigen::Vector3d> own_normal(count);
+    std::vector<std::uint8_t> planar(count, 0);
+    for (std::uint32_t n = 0; n < count; ++n) {
+      const SphereNode& node = tree.node(n);
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+        mean += rest[tree.pointIndices()[s]];
+      }
+      mean /= node.point_count;
+      Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+      for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+        const Eigen::Vector3d d = rest[tree.pointIndices()[s]] - mean;
+        covariance += d * d.transpose();
+      }
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+      own_normal[n] = solver.eigenvectors().col(0);
+      // A handful of points always fits some plane (three do exactly), often a wrong one.
+      planar[n] = node.point_count >= 16 && solver.eigenvalues()(0) < 0.1 * solver.eigenvalues()(1);
+    }
+    node_normals.resize(count);
+    node_half_thickness.resize(count);
+    for (std::uint32_t n = 0; n < count; ++n) {
+      std::uint32_t source = n;
+      while (!planar[source] && source != 0) source = parent[source];
+      node_normals[n] = own_normal[source];
+      const SphereNode& node = tree.node(n);
+      const Eigen::Vector3d center =
+          node.cluster < 0 ? node.rest_center
+                           : Eigen::Vector3d(node.rest_center +
+                                             body.cluster(node.cluster).rest_center_of_mass);
+      double half = 0.0;
+      for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+        half = std::max(half, std::abs((rest[tree.pointIndices()[s]] - center).dot(node_normals[n])));
+      }
+      node_half_thickness[n] = half;
+    }
+  }
+
+  ObjectConfig config;
+  ShapeMatchingBody body;
+  SphereTree tree;
+  bool stale = false;  ///< Moved since its tree's spheres were last invalidated.
+  double sweep_min = 0.0;
+  double sweep_max = 0.0;
+  // Response scratch: changes summed per point, averaged when applied.
+  std::vector<Eigen::Vector3d> displacement_sums;
+  std::vector<Eigen::Vector3d> velocity_change_sums;
+  std::vector<std::uint32_t> displacement_counts;
+  std::vector<std::uint32_t> displaced_points;
+  std::vector<PointDisplacement> displacements;
+  std::vector<Eigen::Vector3d> posed_points;  ///< Kinematic objects: the rest shape posed.
+  /// The side each partner touched this object from, kept while the contact lasts: an
+  /// object pushed past the middle of a thin wall must still be pushed back, not through.
+  struct ContactSide {
+    std::uint32_t partner = 0;
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< Away from the partner.
+    std::uint64_t cycle = 0;                             ///< Last cycle in contact.
+  };
+  std::vector<ContactSide> sides;
+  /// Contacts between this object and a fixed one, counted in hops over touching objects
+  /// (0: fixed itself); unsupported objects have the largest value.
+  std::uint32_t support_depth = 0;
+  // Response scratch of the whole object.
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity_change = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> node_normals;  ///< Fixed objects: rest plane normal per node.
+  std::vector<double> node_half_thickness;    ///< Fixed objects: along that normal.
+};
+
+std::optional<ObjectKind> parseObjectKind(const std::string& name) {
+  if (name == "static") return ObjectKind::kStatic;
+  if (name == "kinematic") return ObjectKind::kKinematic;
+  if (name == "tracked") return ObjectKind::kTracked;
+  if (name == "dynamic") return ObjectKind::kDynamic;
+  return std::nullopt;
+}
+
+const char* toString(ObjectKind kind) {
+  switch (kind) {
+    case ObjectKind::kStatic:
+      return "static";
+    case ObjectKind::kKinematic:
+      return "kinematic";
+    case ObjectKind::kTracked:
+      return "tracked";
+    case ObjectKind::kDynamic:
+      return "dynamic";
+  }
+  return "unknown";
+}
+
+Scene::Scene(const SceneConfig& config) : config_(config) {
+  const auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
+  std::ostringstream value;
+  if (!config.gravity_mps2.allFinite()) fail("SceneConfig.gravity_mps2 is not finite");
+  if (!(config.dt_s > 0.0 && config.dt_s <= 0.1)) {
+    value << "SceneConfig.dt_s = " << config.dt_s << " must be in (0, 0.1]";
+    fail(value.str());
+  }
+  if (!(config.contact_distance_m > 0.0) || !std::isfinite(config.contact_distance_m)) {
+    value << "SceneConfig.contact_distance_m = " << config.contact_distance_m
+          << " must be finite and > 0";
+    fail(value.str());
+  }
+  if (!(config.friction >= 0.0) || !std::isfinite(config.friction)) {
+    value << "SceneConfig.friction = " << config.friction << " must be finite and >= 0";
+    fail(value.str());
+  }
+  if (config.level < -1) {
+    value << "SceneConfig.level = " << config.level << " must be >= 0, or -1 for the finest";
+    fail(value.str());
+  }
+  if (config.tree.branching < 2 || config.tree.leaf_size < 1 ||
+      config.tree.exact_radius_points < 0) {
+    value << "SceneConfig.tree (branching " << config.tree.branching << ", leaf_size "
+          << config.tree.leaf_size << ", exact_radius_points " << config.tree.exact_radius_points
+          << ") needs branching >= 2, leaf_size >= 1, exact_radius_points >= 0";
+    fail(value.str());
+  }
+}
+
+Scene::~Scene() = default;
+
+std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vector3d> rest_points_m) {
+  if (config.name.empty()) throw std::invalid_argument("object name is empty");
+  if (findObject(config.name)) {
+    throw std::invalid_argument("object name '" + config.name + "' is used twice");
+  }
+  ObjectConfig checked = config;
+  if (config.kind != ObjectKind::kDynamic) {
+    // Only dynamic objects are simulated; the others are registered, never stepped.
+    checked.shape.damping = 0.0;
+  }
+  if (config.kind == ObjectKind::kKinematic) checked.shape.mode = DeformationMode::kRigid;
+  try {
+    objects_.push_back(std::make_unique<Object>(checked, std::move(rest_points_m), config_.tree));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("object '" + config.name + "': " + e.what());
+  }
+  if (!objects_.back()->dynamic()) objects_.back()->computeNodePlanes();
+  sweep_order_.reserve(objects_.size());
+  return objects_.size() - 1;
+}
+
+void Scene::setPose(std::size_t object, const Eigen::Isometry3d& pose) {
+  Object& o = *objects_.at(object);
+  if (o.config.kind != ObjectKind::kKinematic) {
+    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
+                                ", only kinematic objects take a pose");
+  }
+  if (!pose.matrix().allFinite()) {
+    throw std::invalid_argument("pose of object '" + o.config.name + "' is not finite");
+  }
+  const auto& rest = o.body.restPositions();
+  o.posed_points.resize(rest.size());
+  for (std::size_t i = 0; i < rest.size(); ++i) o.posed_points[i] = pose * rest[i];
+  o.body.setPositions(o.posed_points);
+  o.stale = true;
+  ++stats_.objects_moved;
+}
+
+void Scene::setVelocities(std::size_t object, const std::vector<Eigen::Vector3d>& velocities_mps) {
+  Object& o = *objects_.at(object);
+  if (!o.dynamic()) {
+    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
+                                ", only dynamic objects have velocities");
+  }
+  o.body.setVelocities(velocities_mps);
+}
+
+std::size_t Scene::observe(std::size_t object, const std::vector<Eigen::Vector3d>& points_m) {
+  Object& o = *objects_.at(object);
+  if (o.config.kind != ObjectKind::kTracked) {
+    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
+                                ", only tracked objects take observations");
+  }
+  const std::size_t unobserved = o.body.track(points_m);
+  o.stale = true;
+  ++stats_.objects_moved;
+  return unobserved;
+}
+
+void Scene::cycle() {
+  const std::size_t moved_before = stats_.objects_moved;
+  stats_ = CycleStats{};
+  stats_.objects_moved = moved_before;
+  const auto start = Clock::now();
+  for (auto& object : objects_) {
+    if (!object->dynamic()) continue;
+    object->body.step(config_.dt_s, config_.gravity_mps2);
+    object->stale = true;
+    ++stats_.objects_moved;
+  }
+  const auto simulated = Clock::now();
+
+  refreshStaleTrees();
+  stats_.level = level();
+  contacts_.clear();
+  query_counters_ = QueryCounters{};
+  std::size_t spheres_before = 0;
+  for (const auto& object : objects_) spheres_before += object->tree.counters().spheres_updated;
+  detect(stats_.level, std::nullopt, std::nullopt, contacts_);
+  std::size_t spheres_after = 0;
+  for (const auto& object : objects_) spheres_after += object->tree.counters().spheres_updated;
+  const auto detected = Clock::now();
+
+  respond();
+  const auto responded = Clock::now();
+
+  stats_.shape_matching_ms = millisecondsBetween(start, simulated);
+  stats_.detection_ms = millisecondsBetween(simulated, detected);
+  stats_.response_ms = millisecondsBetween(detected, responded);
+  stats_.spheres_updated = spheres_after - spheres_before;
+  stats_.node_pairs_tested = query_counters_.node_pairs_tested;
+  stats_.point_tests = query_counters_.point_tests;
+  stats_.contacts = contacts_.size();
+}
+
+void Scene::refreshStaleTrees() {
+  for (auto& object : objects_) {
+    if (!object->stale) continue;
+    object->tree.beginCycle();
+    object->stale = false;
+  }
+}
+
+void Scene::sweepAndPrune() {
+  const double margin = 0.5 * config_.contact_distance_m;
+  sweep_order_.clear();
+  for (std::uint32_t i = 0; i < objects_.size(); ++i) {
+    Object& o = *objects_[i];
+    const Sphere& root = o.tree.sphere(0);
+    o.sweep_min = root.center.x() - root.radius - margin;
+    o.sweep_max = root.center.x() + root.radius + margin;
+    sweep_order_.push_back(i);
+  }
+  std::sort(sweep_order_.begin(), sweep_order_.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return objects_[a]->sweep_min < objects_[b]->sweep_min ||
+           (objects_[a]->sweep_min == objects_[b]->sweep_min && a < b);
+  });
+  candidate_pairs_.clear();
+  // Objects overlapping the current one along x are those after it whose interval starts
+  // before its own ends.
+  for (std::size_t s = 0; s < sweep_order_.size(); ++s) {
+    const Object& first = *objects_[sweep_order_[s]];
+    for (std::size_t t = s + 1; t < sweep_order_.size(); ++t) {
+      const Object& second = *objects_[sweep_order_[t]];
+      if (second.sweep_min > first.sweep_max) break;
+      if (first.config.kind == ObjectKind::kStatic && second.config.kind == ObjectKind::kStatic) {
+        continue;
+      }
+      candidate_pairs_.emplace_back(std::min(sweep_order_[s], sweep_order_[t]),
+                                    std::max(sweep_order_[s], sweep_order_[t]));
+    }
+  }
+  // Deterministic contact order, whatever the sweep order.
+  std::sort(candidate_pairs_.begin(), candidate_pairs_.end());
+}
+
+void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
+                   std::vector<SceneContact>& contacts) {
+  sweepAndPrune();
+  const auto matches = [&](std::size_t a, std::size_t b) {
+    const bool a_ok = !only_a || *only_a == a;
+    const bool b_ok = !only_b || *only_b == b;
+    return a_ok && b_ok;
+  };
+  for (const auto& [a, b] : candidate_pairs_) {
+    // A pair matches the filter in either order; contacts keep the order asked for.
+    const bool forward = matches(a, b);
+    const bool backward = !forward && matches(b, a);
+    if (!forward && !backward) continue;
+    const std::uint32_t first = forward ? a : b;
+    const std::uint32_t second = forward ? b : a;
+    ++stats_.object_pairs_tested;
+    pair_contacts_.clear();
+    query_.collide(objects_[first]->tree, objects_[second]->tree, level,
+                   config_.contact_distance_m, pair_contacts_, query_counters_);
+    for (const auto& contact : pair_contacts_) contacts.push_back({first, second, contact});
+  }
+}
+
+void Scene::rankSupport() {
+  constexpr std::uint32_t kUnsupported = std::numeric_limits<std::uint32_t>::max();
+  // Adjacency of the touching pairs (contacts come grouped by pair), in compressed rows.
+  const std::size_t count = objects_.size();
+  neighbour_offsets_.assign(count + 1, 0);
+  touching_pairs_.clear();
+  for (std::size_t k = 0; k < contacts_.size(); ++k) {
+    if (k > 0 && contacts_[k].object_a == contacts_[k - 1].object_a &&
+        contacts_[k].object_b == contacts_[k - 1].object_b) {
+      continue;
+    }
+    touching_pairs_.emplace_back(contacts_[k].object_a, contacts_[k].object_b);
+    ++neighbour_offsets_[contacts_[k].object_a + 1];
+    ++neighbour_offsets_[contacts_[k].object_b + 1];
+  }
+  for (std::size_t i = 0; i < count; ++i) neighbour_offsets_[i + 1] += neighbour_offsets_[i];
+  neighbours_.resize(neighbour_offsets_[count]);
+  neighbour_fill_.assign(neighbour_offsets_.begin(), neighbour_offsets_.end() - 1);
+  for (const auto& [a, b] : touching_pairs_) {
+    neighbours_[neighbour_fill_[a]++] = b;
+    neighbours_[neighbour_fill_[b]++] = a;
+  }
+  // Breadth-first from the fixed objects.
+  support_queue_.clear();
+  for (std::uint32_t i = 0; i < count; ++i) {
+    objects_[i]->support_depth = objects_[i]->dynamic() ? kUnsupported : 0;
+    if (!objects_[i]->dynamic()) support_queue_.push_back(i);
+  }
+  for (std::size_t head = 0; head < support_queue_.size(); ++head) {
+    const std::uint32_t from = support_queue_[head];
+    const std::uint32_t depth = objects_[from]->support_depth + 1;
+    for (std::uint32_t n = neighbour_offsets_[from]; n < neighbour_offsets_[from + 1]; ++n) {
+      Object& other = *objects_[neighbours_[n]];
+      if (other.support_depth <= depth) continue;
+      other.support_depth = depth;
+      support_queue_.push_back(neighbours_[n]);
+    }
+  }
+}
+
+void Scene::respond() {
+  // Objects are separated to half the contact distance: resting objects stay in contact
+  // (closer than the contact distance) and are still held apart.
+  ++cycle_count_;
+  rankSupport();
+  for (auto& object : objects_) {
+    auto& sides = object->sides;
+    sides.erase(std::remove_if(sides.begin(), sides.end(),
+                               [&](const Object::ContactSide& k) { return k.cycle + 1 < cycle_count_; }),
+                sides.end());
+  }
+  // Each pair of touching objects is resolved in two parts. The whole object moves by the
+  // mean push of its contact nodes (weighted by their points) and stops approaching the
+  // other along the pair's normal (perfectly inelastic between the centres of mass); only
+  // what a node needs beyond that mean is pushed into the object locally, as a dent that
+  // shape matching restores. A rigid object thus lands without deforming and a soft one
+  // dents where it touches most. Velocity corrections of single nodes, tried first, do not
+  // survive the next goal step: it spreads them over the object, so a resting object
+  // sinks, or, cancelling the motion the goals give the pushed points, bounces.
+  for (std::size_t run_begin = 0; run_begin < contacts_.size();) {
+    const std::uint32_t index_a = contacts_[run_begin].object_a;
+    const std::uint32_t index_b = contacts_[run_begin].object_b;
+    std::size_t run_end = run_begin;
+    while (run_end < contacts_.size() && contacts_[run_end].object_a == index_a &&
+           contacts_[run_end].object_b == index_b) {
+      ++run_end;
+    }
+    Object& a = *objects_[index_a];
+    Object& b = *objects_[index_b];
+    if (a.dynamic() || b.dynamic()) resolvePair(a, b, index_a, index_b, run_begin, run_end);
+    run_begin = run_end;
+  }
+  for (auto& object : objects_) {
+    if (!object->dynamic()) continue;
+    const bool moved = object->translation.squaredNorm() > 0.0 ||
+                       object->velocity_change.squaredNorm() > 0.0 ||
+                       !object->displaced_points.empty();
+    if (!moved) continue;
+    // An object moves at most the contact distance per response, so it cannot jump past a
+    // layer thinner than that before the layer's contacts are seen; deeper overlaps take a
+    // few cycles.
+    const double reach = object->translation.norm();
+    if (reach > config_.contact_distance_m) object->translation *= config_.contact_distance_m / reach;
+    object->body.translate(object->translation);
+    object->body.addVelocity(object->velocity_change);
+    object->translation.setZero();
+    object->velocity_change.setZero();
+    object->displacements.clear();
+    for (const std::uint32_t point : object->displaced_points) {
+      const double share = 1.0 / object->displacement_counts[point];
+      object->displacements.push_back({point, share * object->displacement_sums[point],
+                                       share * object->velocity_change_sums[point]});
+      object->displacement_sums[point].setZero();
+      object->velocity_change_sums[point].setZero();
+      object->displacement_counts[point] = 0;
+    }
+    stats_.points_displaced += object->displaced_points.size();
+    object->displaced_points.clear();
+    object->body.displacePoints(object->displacements);
+    object->stale = true;
+  }
+  // Queries between cycles see the state after the response.
+  refreshStaleTrees();
+}
+
+void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
+                        std::size_t run_begin, std::size_t run_end) {
+  // Pushes per contact, for a (along +normal) and b (along -normal): a node's depth along
+  // a normal from b to a, shared by inverse mass between dynamic nodes.
+  pushes_.clear();
+  const bool fixed_pair = a.dynamic() != b.dynamic();
+  // The side a lies on, seen from b: as in the last cycle of this contact, or for a new
+  // contact, where the objects' centres are.
+  Eigen::Vector3d side = a.tree.sphere(0).center - b.tree.sphere(0).center;
+  Object& keeper = a.dynamic() ? a : b;
+  const std::uint32_t partner = static_cast<std::uint32_t>(&keeper == &a ? index_b : index_a);
+  auto kept = std::find_if(keeper.sides.begin(), keeper.sides.end(),
+                           [&](const Object::ContactSide& k) { return k.partner == partner; });
+  if (kept != keeper.sides.end() && kept->cycle + 1 >= cycle_count_) {
+    side = &keeper == &a ? kept->normal : Eigen::Vector3d(-kept->normal);
+  }
+  for (std::size_t k = run_begin; k < run_end; ++k) {
+    const SphereContact& c = contacts_[k].contact;
+    ContactPush push;
+    push.node_a = c.node_a;
+    push.node_b = c.node_b;
+    if (fixed_pair) {
+      // Against a fixed object: its node's plane, oriented towards the dynamic object, and
+      // the deepest point's signed distance. Unlike the distance to the nearest point, that
+      // depth does not shrink or flip when points have passed a thin layer such as a floor.
+      const bool a_fixed = !a.dynamic();
+      Object& fixed = a_fixed ? a : b;
+      Object& moving = a_fixed ? b : a;
+      const std::uint32_t fixed_node = a_fixed ? c.node_a : c.node_b;
+      const SphereNode& node = moving.tree.node(a_fixed ? c.node_b : c.node_a);
+      const int cluster = std::max(0, fixed.tree.node(fixed_node).cluster);
+      Eigen::Vector3d away = fixed.body.deformation(cluster).rotation * fixed.node_normals[fixed_node];
+      const Eigen::Vector3d plane_point = fixed.tree.sphere(fixed_node).center;
+      if (away.dot(a_fixed ? Eigen::Vector3d(-side) : side) < 0.0) away = -away;
+      // Pairs resolved before this one may have moved the object already.
+      double lowest = moving.translation.dot(away);
+      double deepest = std::numeric_limits<double>::infinity();
+      const auto& positions = moving.body.positions();
+      for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+        deepest = std::min(deepest, (positions[moving.tree.pointIndices()[s]] - plane_point).dot(away));
+      }
+      lowest += deepest;
+      const double depth =
+          fixed.node_half_thickness[fixed_node] + 0.5 * config_.contact_distance_m - lowest;
+      if (depth <= 0.0) continue;
+      push.normal = a_fixed ? Eigen::Vector3d(-away) : away;
+      push.depth_a = a_fixed ? 0.0 : depth;
+      push.depth_b = a_fixed ? depth : 0.0;
+    } else {
+      // Two dynamic nodes: the contact normal, turned to agree with where the objects are
+      // relative to each other, and the depth shared by inverse mass.
+      push.normal = c.normal.dot(side) < 0.0 ? Eigen::Vector3d(-c.normal) : c.normal;
+      const double inverse_a = a.support_depth < b.support_depth
+                                   ? 0.0
+                                   : 1.0 / (a.body.pointMassKg() * a.tree.node(c.node_a).point_count);
+      const double inverse_b = b.support_depth < a.support_depth
+                                   ? 0.0
+                                   : 1.0 / (b.body.pointMassKg() * b.tree.node(c.node_b).point_count);
+      const double depth = c.depth_m - 0.5 * config_.contact_distance_m -
+                           (a.translation - b.translation).dot(push.normal);
+      if (depth <= 0.0) continue;
+      push.depth_a = depth * inverse_a / (inverse_a + inverse_b);
+      push.depth_b = depth - push.depth_a;
+    }
+    pushes_.push_back(push);
+  }
+  if (pushes_.empty()) return;
+  if (!fixed_pair) {
+    // Nearest point pairs of two clouds point every which way; their depth-weighted mean
+    // does not, and pushing along it keeps stacked objects from sliding off each other.
+    Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();
+    for (const ContactPush& push : pushes_) mean_normal += (push.depth_a + push.depth_b) * push.normal;
+    if (mean_normal.squaredNorm() > 0.0) {
+      mean_normal.normalize();
+      for (ContactPush& push : pushes_) push.normal = mean_normal;
+    }
+  }
+
+  Eigen::Vector3d mean_a = Eigen::Vector3d::Zero();
+  Eigen::Vector3d mean_b = Eigen::Vector3d::Zero();
+  double weight_a = 0.0;
+  double weight_b = 0.0;
+  Eigen::Vector3d pair_normal = Eigen::Vector3d::Zero();
+  for (const ContactPush& push : pushes_) {
+    const double points_a = a.tree.node(push.node_a).point_count;
+    const double points_b = b.tree.node(push.node_b).point_count;
+    mean_a += points_a * push.depth_a * push.normal;
+    mean_b -= points_b * push.depth_b * push.normal;
+    weight_a += points_a;
+    weight_b += points_b;
+    pair_normal += (push.depth_a + push.depth_b) * push.normal;
+  }
+  mean_a /= weight_a;
+  mean_b /= weight_b;
+  // A stiff object cannot dent, so it moves to clear more of its deepest node: the mean
+  // push for a soft one (the rest is dented), all of the deepest for a rigid one.
+  double deepest_a = 0.0;
+  double deepest_b = 0.0;
+  for (const ContactPush& push : pushes_) {
+    deepest_a = std::max(deepest_a, push.depth_a - mean_a.dot(push.normal));
+    deepest_b = std::max(deepest_b, push.depth_b + mean_b.dot(push.normal));
+  }
+  const Eigen::Vector3d pair_direction = pair_normal.normalized();
+  if (a.dynamic()) mean_a += a.config.shape.stiffness * deepest_a * pair_direction;
+  if (b.dynamic()) mean_b -= b.config.shape.stiffness * deepest_b * pair_direction;
+  // Gauss-Seidel over the pairs: each sees the velocity changes of the pairs before it; a
+  // Jacobi sweep stops an object resting on two others twice, and piles explode.
+  const Eigen::Vector3d velocity_a =
+      a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d velocity_b =
+      b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
+  // A dented point is blocked by the other object: it also stops moving into it (the other
+  // object takes that momentum). Left alone, the goal step turns each cycle's dent into
+  // motion towards the contact, and a held contact pumps up speed.
+  const auto dent = [](Object& object, const SphereNode& node, const Eigen::Vector3d& away,
+                       double beyond, const Eigen::Vector3d& other_velocity) {
+    const auto& velocities = object.body.velocities();
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      const std::uint32_t point = object.tree.pointIndices()[s];
+      if (object.displacement_counts[point]++ == 0) object.displaced_points.push_back(point);
+      object.displacement_sums[point] += beyond * away;
+      const double inward = std::min(0.0, (velocities[point] - other_velocity).dot(away));
+      object.velocity_change_sums[point] -= inward * away;
+    }
+  };
+  for (const ContactPush& push : pushes_) {
+    if (a.dynamic()) {
+      const double beyond = push.depth_a - mean_a.dot(push.normal);
+      if (beyond > 0.0) dent(a, a.tree.node(push.node_a), push.normal, beyond, velocity_b);
+    }
+    if (b.dynamic()) {
+      const double beyond = push.depth_b + mean_b.dot(push.normal);
+      if (beyond > 0.0) dent(b, b.tree.node(push.node_b), -push.normal, beyond, velocity_a);
+    }
+  }
+
+  const Eigen::Vector3d normal = pair_normal.normalized();
+  const Eigen::Vector3d kept_normal = &keeper == &a ? normal : Eigen::Vector3d(-normal);
+  if (kept != keeper.sides.end()) {
+    kept->normal = kept_normal;
+    kept->cycle = cycle_count_;
+  } else {
+    keeper.sides.push_back({partner, kept_normal, cycle_count_});
+  }
+  const Eigen::Vector3d relative = velocity_a - velocity_b;
+  const double approach = std::min(0.0, relative.dot(normal));
+  const Eigen::Vector3d sliding = relative - relative.dot(normal) * normal;
+  const double sliding_speed = sliding.norm();
+  // The change of the relative velocity: stop the approach, and brake the sliding by at
+  // most friction times that.
+  Eigen::Vector3d change = -approach * normal;
+  if (sliding_speed > 0.0) {
+    change -= std::min(sliding_speed, -config_.friction * approach) / sliding_speed * sliding;
+  }
+  // Shock propagation (Guendelman et al. 2003): of two touching objects, the one nearer to
+  // a fixed support acts as fixed, so that pushes never drive an object into what carries
+  // it, such as the bottom of a pile into the floor or a wall.
+  const double inverse_a =
+      a.dynamic() && a.support_depth >= b.support_depth ? 1.0 / a.body.config().mass_kg : 0.0;
+  const double inverse_b =
+      b.dynamic() && b.support_depth >= a.support_depth ? 1.0 / b.body.config().mass_kg : 0.0;
+  const double share_a = inverse_a / (inverse_a + inverse_b);
+  if (a.dynamic()) {
+    a.translation += mean_a;
+    a.velocity_change += share_a * change;
+  }
+  if (b.dynamic()) {
+    b.translation += mean_b;
+    b.velocity_change -= (1.0 - share_a) * change;
+  }
+}
+
+void Scene::setLevel(int level) {
+  if (level < 0 || level > maxLevel()) {
+    throw std::out_of_range("level " + std::to_string(level) + " is outside [0, " +
+                            std::to_string(maxLevel()) + "]");
+  }
+  config_.level = level;
+}
+
+int Scene::level() const {
+  return config_.level < 0 ? maxLevel() : std::min(config_.level, maxLevel());
+}
+
+int Scene::maxLevel() const {
+  int deepest = 0;
+  for (const auto& object : objects_) deepest = std::max(deepest, object->tree.maxLevel());
+  return deepest;
+}
+
+void Scene::contactsAt(int level, std::optional<std::size_t> object_a,
+                       std::optional<std::size_t> object_b, std::vector<SceneContact>& contacts) {
+  if (level < 0 || level > maxLevel()) {
+    throw std::out_of_range("level " + std::to_string(level) + " is outside [0, " +
+                            std::to_string(maxLevel()) + "]");
+  }
+  for (const auto& object : {object_a, object_b}) {
+    if (object && *object >= objects_.size()) {
+      throw std::out_of_range("object " + std::to_string(*object) + " is outside [0, " +
+                              std::to_string(objects_.size()) + ")");
+    }
+  }
+  const CycleStats kept = stats_;
+  const QueryCounters kept_counters = query_counters_;
+  refreshStaleTrees();
+  contacts.clear();
+  detect(level, object_a, object_b, contacts);
+  stats_ = kept;
+  query_counters_ = kept_counters;
+}
+
+std::optional<std::size_t> Scene::findObject(const std::string& name) const {
+  for (std::size_t i = 0; i < objects_.size(); ++i) {
+    if (objects_[i]->config.name == name) return i;
+  }
+  return std::nullopt;
+}
+
+const ObjectConfig& Scene::objectConfig(std::size_t object) const {
+  return objects_.at(object)->config;
+}
+
+const ShapeMatchingBody& Scene::body(std::size_t object) const { return objects_.at(object)->body; }
+
+const SphereTree& Scene::tree(std::size_t object) const { return objects_.at(object)->tree; }
+
+}  // namespace deformable_collision

@@ -1,0 +1,166 @@
+#pragma once
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "deformable_collision/core/collision_query.h"
+#include "deformable_collision/core/shape_matching.h"
+#include "deformable_collision/core/sphere_tree.h"
+
+namespace deformable_collision {
+
+/// How an object's points move.
+enum class ObjectKind {
+  kStatic,     ///< Never moves; costs nothing per cycle.
+  kKinematic,  ///< Rigid, moved by setPose() (a gripper following a tf frame).
+  kTracked,    ///< Moved by observe() (registered clouds of a deforming object).
+  kDynamic,    ///< Simulated by shape matching and pushed by the collision response.
+};
+
+/// "static", "kinematic", "tracked" or "dynamic"; std::nullopt otherwise.
+std::optional<ObjectKind> parseObjectKind(const std::string& name);
+const char* toString(ObjectKind kind);
+
+struct ObjectConfig {
+  std::string name;
+  ObjectKind kind = ObjectKind::kDynamic;
+  ShapeMatchingConfig shape;
+};
+
+struct SceneConfig {
+  Eigen::Vector3d gravity_mps2 = Eigen::Vector3d(0.0, 0.0, -9.81);
+  double dt_s = 0.01;                ///< Step of one cycle, in (0, 0.1].
+  double contact_distance_m = 0.005; ///< Points closer than this are in contact (> 0).
+  int level = -1;                    ///< Level of detail; -1: the finest (the leaves).
+  /// Coulomb friction coefficient (>= 0) between touching objects: the sliding speed of a
+  /// pair drops by at most this times the approach speed the contact stops.
+  double friction = 0.5;
+  SphereTreeConfig tree;
+};
+
+/// A contact between two objects of the scene, at `contact.level`.
+struct SceneContact {
+  std::uint32_t object_a = 0;
+  std::uint32_t object_b = 0;
+  SphereContact contact;
+};
+
+/// Per-cycle timings (steady clock) and counts.
+struct CycleStats {
+  double shape_matching_ms = 0.0;
+  double detection_ms = 0.0;
+  double response_ms = 0.0;
+  int level = 0;  ///< The level the contacts were found at.
+  std::size_t objects_moved = 0;         ///< Stepped, posed or registered this cycle.
+  std::size_t object_pairs_tested = 0;   ///< Root sphere tests after the sweep.
+  std::size_t spheres_updated = 0;
+  std::size_t node_pairs_tested = 0;
+  std::size_t point_tests = 0;
+  std::size_t contacts = 0;
+  std::size_t points_displaced = 0;
+};
+
+/// Objects, their hierarchies and one simulation cycle (paper section 6): shape matching,
+/// a sweep-and-prune broad phase over the objects' root spheres, the hierarchy query at the
+/// selected level, and the level-of-detail response. The response separates each pair of
+/// touching objects to half the contact distance: the whole object moves by the mean push
+/// of its contact nodes (more for stiff objects) and stops approaching the other (with
+/// Coulomb friction), and the nodes dent it by what they need beyond that; pairs are
+/// resolved one after the other, objects nearer to a fixed support acting as fixed (shock
+/// propagation). Steady-state cycles allocate nothing.
+class Scene {
+ public:
+  /// @throw std::invalid_argument naming the bad value.
+  explicit Scene(const SceneConfig& config);
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  /// Adds an object with its rest shape (in the scene's frame) and returns its index.
+  /// @throw std::invalid_argument for an empty or duplicate name or a bad shape.
+  std::size_t addObject(const ObjectConfig& config, std::vector<Eigen::Vector3d> rest_points_m);
+
+  /// Moves a kinematic object rigidly to `pose` (applied to its rest shape).
+  /// @throw std::invalid_argument if the object is not kinematic or the pose not finite.
+  void setPose(std::size_t object, const Eigen::Isometry3d& pose);
+
+  /// Sets the velocities of a dynamic object (an initial condition).
+  /// @throw std::invalid_argument if the object is not dynamic or the size differs.
+  void setVelocities(std::size_t object, const std::vector<Eigen::Vector3d>& velocities_mps);
+
+  /// Registers observed positions of a tracked object (see ShapeMatchingBody::track).
+  /// @return the number of unobserved points.
+  /// @throw std::invalid_argument if the object is not tracked or the size differs.
+  std::size_t observe(std::size_t object, const std::vector<Eigen::Vector3d>& points_m);
+
+  /// One cycle; its contacts are contacts() and its figures stats().
+  void cycle();
+
+  /// Changes the level of the next cycles (no other cost).
+  /// @throw std::out_of_range if level is not in [0, maxLevel()].
+  void setLevel(int level);
+  /// The level in force: the configured one, or maxLevel() for "finest".
+  int level() const;
+  /// The finest level over all objects (the leaves).
+  int maxLevel() const;
+
+  /// Contacts at `level` on the current state, for objects a and b (std::nullopt: any).
+  /// The running level and the contacts of the last cycle are left alone.
+  /// @throw std::out_of_range if level is not in [0, maxLevel()] or an object index is not.
+  void contactsAt(int level, std::optional<std::size_t> object_a,
+                  std::optional<std::size_t> object_b, std::vector<SceneContact>& contacts);
+
+  const std::vector<SceneContact>& contacts() const { return contacts_; }
+  const CycleStats& stats() const { return stats_; }
+  const SceneConfig& config() const { return config_; }
+
+  std::size_t objectCount() const { return objects_.size(); }
+  std::optional<std::size_t> findObject(const std::string& name) const;
+  const ObjectConfig& objectConfig(std::size_t object) const;
+  const ShapeMatchingBody& body(std::size_t object) const;
+  const SphereTree& tree(std::size_t object) const;
+
+ private:
+  struct Object;
+
+  void refreshStaleTrees();
+  void sweepAndPrune();
+  void detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
+              std::vector<SceneContact>& contacts);
+  void respond();
+  void rankSupport();
+  void resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
+                   std::size_t run_begin, std::size_t run_end);
+
+  /// One contact's push: depths along `normal` (from b to a) that a and b must move.
+  struct ContactPush {
+    std::uint32_t node_a = 0;
+    std::uint32_t node_b = 0;
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    double depth_a = 0.0;
+    double depth_b = 0.0;
+  };
+
+  SceneConfig config_;
+  std::vector<std::unique_ptr<Object>> objects_;
+  std::vector<std::uint32_t> sweep_order_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> candidate_pairs_;
+  HierarchyQuery query_;
+  std::vector<SphereContact> pair_contacts_;
+  std::vector<SceneContact> contacts_;
+  std::vector<ContactPush> pushes_;
+  std::vector<std::uint32_t> support_queue_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> touching_pairs_;
+  std::vector<std::uint32_t> neighbour_offsets_;
+  std::vector<std::uint32_t> neighbour_fill_;
+  std::vector<std::uint32_t> neighbours_;
+  QueryCounters query_counters_;
+  CycleStats stats_;
+  std::uint64_t cycle_count_ = 1;
+};
+
+}  // namespace deformable_collision

@@ -1,0 +1,316 @@
+#include "deformable_collision/core/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <functional>
+#include <new>
+
+#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/core/shapes.h"
+
+// Allocation counting for the steady-state test: this binary replaces the global
+// allocation functions, counting while `counting` is set.
+namespace {
+std::atomic<bool> counting{false};
+std::atomic<long> allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (counting) ++allocations;
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace deformable_collision {
+namespace {
+
+using Points = std::vector<Eigen::Vector3d>;
+
+/// A 0.8 m square floor, two layers 2 cm apart, 2 cm spacing, top at z = 0.
+Points floorPoints() {
+  Points floor;
+  for (int i = -20; i <= 20; ++i) {
+    for (int j = -20; j <= 20; ++j) {
+      for (int k = 0; k < 2; ++k) floor.emplace_back(0.02 * i, 0.02 * j, -0.02 * k);
+    }
+  }
+  return floor;
+}
+
+double lowestZ(const ShapeMatchingBody& body) {
+  double z = std::numeric_limits<double>::infinity();
+  for (const auto& p : body.positions()) z = std::min(z, p.z());
+  return z;
+}
+
+double fastestPoint(const Scene& scene) {
+  double speed = 0.0;
+  for (std::size_t o = 0; o < scene.objectCount(); ++o) {
+    for (const auto& v : scene.body(o).velocities()) speed = std::max(speed, v.norm());
+  }
+  return speed;
+}
+
+bool allFinite(const Scene& scene) {
+  for (std::size_t o = 0; o < scene.objectCount(); ++o) {
+    for (const auto& p : scene.body(o).positions()) {
+      if (!p.allFinite()) return false;
+    }
+    for (const auto& v : scene.body(o).velocities()) {
+      if (!v.allFinite()) return false;
+    }
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------
+// A rigid box dropped on a floor comes to rest at every level of detail: no penetration
+// persists, it does not bounce or sink, and it rests at half the contact distance above the
+// floor (up to the contact distance more at coarse levels, whose nodes are larger).
+
+class RestingBoxTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(RestingBoxTest, LandsAndRestsAtHalfTheContactDistance) {
+  SceneConfig config;
+  config.contact_distance_m = 0.02;
+  config.level = GetParam();
+  Scene scene(config);
+  ObjectConfig floor;
+  floor.name = "floor";
+  floor.kind = ObjectKind::kStatic;
+  scene.addObject(floor, floorPoints());
+  ObjectConfig box;
+  box.name = "box";
+  box.shape.mode = DeformationMode::kRigid;
+  box.shape.stiffness = 1.0;
+  Points points = sampleBox(2000, {0.1, 0.1, 0.1}, 3);
+  for (auto& p : points) p.z() += 0.2;
+  const std::size_t index = scene.addObject(box, points);
+  if (GetParam() > scene.maxLevel()) GTEST_SKIP() << "the scene has " << scene.maxLevel() << " levels";
+  scene.setLevel(GetParam());
+
+  double deepest = std::numeric_limits<double>::infinity();
+  for (int cycle = 0; cycle < 150; ++cycle) {
+    scene.cycle();
+    deepest = std::min(deepest, lowestZ(scene.body(index)));
+  }
+  EXPECT_GE(deepest, 0.0) << "the box entered the floor";
+  EXPECT_GE(lowestZ(scene.body(index)), 0.005);
+  EXPECT_LE(lowestZ(scene.body(index)), 0.03);
+  EXPECT_LT(scene.body(index).meanVelocity().norm(), 0.05);
+}
+
+INSTANTIATE_TEST_SUITE_P(Levels, RestingBoxTest, ::testing::Values(0, 1, 2, 4, 6, 8, 10),
+                         [](const auto& info) { return "level_" + std::to_string(info.param); });
+
+// ---------------------------------------------------------------------------------------
+// Built-in scenes, small: nothing becomes NaN, nothing runs away, nothing goes through the
+// floor, at a coarse, a middle and the finest level. (The pile is not held at level 1 yet:
+// an object can be pushed through its floor there; see the issue notes.)
+
+struct SceneCase {
+  const char* name;
+  DemoScene scene;
+  std::size_t points;
+  int cycles;
+  int coarsest_level;
+};
+
+void PrintTo(const SceneCase& c, std::ostream* os) { *os << c.name; }
+
+class BuiltInSceneTest : public ::testing::TestWithParam<SceneCase> {};
+
+TEST_P(BuiltInSceneTest, StaysFiniteBoundedAndAboveTheFloor) {
+  const auto& c = GetParam();
+  const int finest = makeDemoScene(c.scene, c.points)->maxLevel();
+  for (const int level : {c.coarsest_level, finest / 2, finest}) {
+    SceneConfig config;
+    config.level = level;
+    auto scene = makeDemoScene(c.scene, c.points, config);
+    const auto floor = scene->findObject("floor");
+    for (int cycle = 0; cycle < c.cycles; ++cycle) {
+      driveDemoScene(c.scene, *scene, cycle * config.dt_s);
+      scene->cycle();
+      ASSERT_TRUE(allFinite(*scene)) << "level " << level << " cycle " << cycle;
+      ASSERT_LT(fastestPoint(*scene), 20.0) << "level " << level << " cycle " << cycle;
+    }
+    if (!floor) continue;
+    for (std::size_t o = 0; o < scene->objectCount(); ++o) {
+      if (scene->objectConfig(o).kind != ObjectKind::kDynamic) continue;
+      EXPECT_GT(lowestZ(scene->body(o)), -scene->config().contact_distance_m)
+          << scene->objectConfig(o).name << " at level " << level;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Scenes, BuiltInSceneTest,
+    ::testing::Values(SceneCase{"two_objects", DemoScene::kTwoObjects, 4000, 150, 1},
+                      SceneCase{"three_objects", DemoScene::kThreeObjects, 9000, 200, 1},
+                      SceneCase{"gripper", DemoScene::kGripper, 3000, 200, 1},
+                      SceneCase{"pile", DemoScene::kPile, 15000, 120, 4}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Scene, StaticObjectsNeverMove) {
+  auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
+  const std::size_t floor = *scene->findObject("floor");
+  const Points before = scene->body(floor).positions();
+  for (int cycle = 0; cycle < 100; ++cycle) scene->cycle();
+  EXPECT_EQ(scene->body(floor).positions(), before);
+}
+
+TEST(Scene, EnergyStaysBoundedWithoutExternalForces) {
+  auto scene = makeDemoScene(DemoScene::kTwoObjects, 4000);
+  const auto kinetic = [&] {
+    double energy = 0.0;
+    for (std::size_t o = 0; o < scene->objectCount(); ++o) {
+      const auto& body = scene->body(o);
+      for (const auto& v : body.velocities()) energy += 0.5 * body.pointMassKg() * v.squaredNorm();
+    }
+    return energy;
+  };
+  const double initial = kinetic();
+  ASSERT_GT(initial, 0.0);
+  bool touched = false;
+  for (int cycle = 0; cycle < 200; ++cycle) {
+    scene->cycle();
+    touched = touched || scene->stats().contacts > 0;
+    ASSERT_LE(kinetic(), initial * (1.0 + 1e-9)) << "cycle " << cycle;
+  }
+  EXPECT_TRUE(touched) << "the two objects must meet";
+}
+
+TEST(Scene, LevelSwitchesBetweenCyclesAndQueriesLeaveItAlone) {
+  auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
+  for (int cycle = 0; cycle < 40; ++cycle) scene->cycle();  // the objects are on the floor
+  scene->setLevel(2);
+  scene->cycle();
+  EXPECT_EQ(scene->stats().level, 2);
+  for (const auto& c : scene->contacts()) EXPECT_LE(c.contact.level, 2);
+  const auto kept = scene->contacts();
+
+  std::vector<SceneContact> finest;
+  scene->contactsAt(scene->maxLevel(), std::nullopt, std::nullopt, finest);
+  EXPECT_FALSE(finest.empty());
+  EXPECT_EQ(scene->level(), 2);
+  EXPECT_EQ(scene->contacts().size(), kept.size());
+
+  const std::size_t ball = *scene->findObject("ball");
+  std::vector<SceneContact> with_ball;
+  scene->contactsAt(scene->maxLevel(), ball, std::nullopt, with_ball);
+  for (const auto& c : with_ball) EXPECT_EQ(c.object_a, ball);
+
+  scene->setLevel(scene->maxLevel());
+  scene->cycle();
+  EXPECT_EQ(scene->stats().level, scene->maxLevel());
+  EXPECT_THROW(scene->setLevel(scene->maxLevel() + 1), std::out_of_range);
+  EXPECT_THROW(scene->setLevel(-1), std::out_of_range);
+  EXPECT_EQ(scene->level(), scene->maxLevel());
+  EXPECT_THROW(scene->contactsAt(0, 99, std::nullopt, finest), std::out_of_range);
+}
+
+TEST(Scene, SteadyStateCyclesAllocateNothing) {
+  auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
+  for (int cycle = 0; cycle < 300; ++cycle) scene->cycle();  // past the impacts
+  allocations = 0;
+  counting = true;
+  for (int cycle = 0; cycle < 20; ++cycle) scene->cycle();
+  counting = false;
+  EXPECT_EQ(allocations.load(), 0);
+  EXPECT_GT(scene->stats().contacts, 0u) << "the objects must still touch the floor";
+}
+
+// ---------------------------------------------------------------------------------------
+// Bad input: an exception that names the bad value.
+
+struct BadSceneCase {
+  const char* name;
+  std::function<void(SceneConfig&)> spoil;
+  const char* message_part;
+};
+
+void PrintTo(const BadSceneCase& c, std::ostream* os) { *os << c.name; }
+
+class BadSceneConfigTest : public ::testing::TestWithParam<BadSceneCase> {};
+
+TEST_P(BadSceneConfigTest, ThrowsNamingTheValue) {
+  SceneConfig config;
+  GetParam().spoil(config);
+  try {
+    Scene scene(config);
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(GetParam().message_part), std::string::npos) << e.what();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, BadSceneConfigTest,
+    ::testing::Values(
+        BadSceneCase{"zero_dt", [](auto& c) { c.dt_s = 0.0; }, "dt_s = 0"},
+        BadSceneCase{"dt_too_long", [](auto& c) { c.dt_s = 0.5; }, "dt_s = 0.5"},
+        BadSceneCase{"negative_contact_distance", [](auto& c) { c.contact_distance_m = -1.0; },
+                     "contact_distance_m = -1"},
+        BadSceneCase{"negative_friction", [](auto& c) { c.friction = -0.3; }, "friction = -0.3"},
+        BadSceneCase{"level_below_minus_one", [](auto& c) { c.level = -2; }, "level = -2"},
+        BadSceneCase{"branching_one", [](auto& c) { c.tree.branching = 1; }, "branching 1"},
+        BadSceneCase{"nan_gravity", [](auto& c) { c.gravity_mps2.z() = std::nan(""); },
+                     "gravity_mps2"}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Scene, ObjectsAreCheckedByNameAndKind) {
+  Scene scene(SceneConfig{});
+  ObjectConfig dynamic;
+  dynamic.name = "ball";
+  scene.addObject(dynamic, sampleBox(50, {0.1, 0.1, 0.1}, 1));
+  EXPECT_THROW(scene.addObject(dynamic, sampleBox(50, {0.1, 0.1, 0.1}, 2)), std::invalid_argument);
+  ObjectConfig unnamed;
+  EXPECT_THROW(scene.addObject(unnamed, sampleBox(50, {0.1, 0.1, 0.1}, 3)), std::invalid_argument);
+  ObjectConfig bad;
+  bad.name = "bad";
+  bad.shape.stiffness = 3.0;
+  try {
+    scene.addObject(bad, sampleBox(50, {0.1, 0.1, 0.1}, 4));
+    FAIL() << "no exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("object 'bad'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(scene.setPose(0, Eigen::Isometry3d::Identity()), std::invalid_argument);
+  EXPECT_THROW(scene.observe(0, scene.body(0).positions()), std::invalid_argument);
+  EXPECT_FALSE(scene.findObject("nothing").has_value());
+  EXPECT_EQ(parseObjectKind("kinematic"), ObjectKind::kKinematic);
+  EXPECT_FALSE(parseObjectKind("floating").has_value());
+}
+
+TEST(Scene, KinematicAndTrackedObjectsFollowTheirInputs) {
+  Scene scene(SceneConfig{});
+  ObjectConfig jaw;
+  jaw.name = "jaw";
+  jaw.kind = ObjectKind::kKinematic;
+  const Points rest = sampleBox(100, {0.02, 0.05, 0.05}, 5);
+  const std::size_t j = scene.addObject(jaw, rest);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translate(Eigen::Vector3d(1.0, 2.0, 3.0));
+  pose.rotate(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()));
+  scene.setPose(j, pose);
+  scene.cycle();
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    EXPECT_LT((scene.body(j).positions()[i] - pose * rest[i]).norm(), 1e-12);
+  }
+  ObjectConfig tracked;
+  tracked.name = "tracked";
+  tracked.kind = ObjectKind::kTracked;
+  const std::size_t t = scene.addObject(tracked, rest);
+  Points observed = rest;
+  for (auto& p : observed) p += Eigen::Vector3d(0.0, 0.0, 0.5);
+  observed[3].x() = std::nan("");
+  EXPECT_EQ(scene.observe(t, observed), 1u);
+  EXPECT_LT((scene.body(t).positions()[3] - (rest[3] + Eigen::Vector3d(0, 0, 0.5))).norm(), 1e-9);
+}
+
+}  // namespace
+}  // namespace deformable_collision
