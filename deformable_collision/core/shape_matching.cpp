@@ -511,20 +511,11 @@ void ShapeMatchingBody::step(double dt_s, const Eigen::Vector3d& acceleration_mp
     throw std::invalid_argument("external acceleration is not finite");
   }
   const bool damped = config_.damping > 0.0;
-  switch (config_.mode) {
-    case DeformationMode::kRigid:
-      damped ? simulate<DeformationMode::kRigid, true>(dt_s, acceleration_mps2)
-             : simulate<DeformationMode::kRigid, false>(dt_s, acceleration_mps2);
-      break;
-    case DeformationMode::kLinear:
-      damped ? simulate<DeformationMode::kLinear, true>(dt_s, acceleration_mps2)
-             : simulate<DeformationMode::kLinear, false>(dt_s, acceleration_mps2);
-      break;
-    case DeformationMode::kQuadratic:
-      damped ? simulate<DeformationMode::kQuadratic, true>(dt_s, acceleration_mps2)
-             : simulate<DeformationMode::kQuadratic, false>(dt_s, acceleration_mps2);
-      break;
-  }
+  withMode([&](auto mode) {
+    constexpr DeformationMode kMode = decltype(mode)::value;
+    damped ? simulate<kMode, true>(dt_s, acceleration_mps2)
+           : simulate<kMode, false>(dt_s, acceleration_mps2);
+  });
 }
 
 std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observed_points) {
@@ -541,17 +532,7 @@ std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observe
     }
   }
   const auto* fill_in = unobserved > 0 ? &observed_points : nullptr;
-  switch (config_.mode) {
-    case DeformationMode::kRigid:
-      registerPositions<DeformationMode::kRigid>(fill_in);
-      break;
-    case DeformationMode::kLinear:
-      registerPositions<DeformationMode::kLinear>(fill_in);
-      break;
-    case DeformationMode::kQuadratic:
-      registerPositions<DeformationMode::kQuadratic>(fill_in);
-      break;
-  }
+  withMode([&](auto mode) { registerPositions<decltype(mode)::value>(fill_in); });
   return unobserved;
 }
 
@@ -569,6 +550,21 @@ void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positio
   track(positions);
 }
 
+
+template <typename Action>
+void ShapeMatchingBody::withMode(Action&& action) {
+  switch (config_.mode) {
+    case DeformationMode::kRigid:
+      action(std::integral_constant<DeformationMode, DeformationMode::kRigid>{});
+      break;
+    case DeformationMode::kLinear:
+      action(std::integral_constant<DeformationMode, DeformationMode::kLinear>{});
+      break;
+    case DeformationMode::kQuadratic:
+      action(std::integral_constant<DeformationMode, DeformationMode::kQuadratic>{});
+      break;
+  }
+}
 
 Eigen::Vector3d ShapeMatchingBody::meanVelocity() const {
   // Each cluster holds a share of its points' masses; the shares add up to the object.
@@ -618,17 +614,7 @@ void ShapeMatchingBody::setVelocities(const std::vector<Eigen::Vector3d>& veloci
     }
   }
   velocities_ = velocities;
-  switch (config_.mode) {
-    case DeformationMode::kRigid:
-      sumCurrentState<DeformationMode::kRigid>();
-      break;
-    case DeformationMode::kLinear:
-      sumCurrentState<DeformationMode::kLinear>();
-      break;
-    case DeformationMode::kQuadratic:
-      sumCurrentState<DeformationMode::kQuadratic>();
-      break;
-  }
+  withMode([&](auto mode) { sumCurrentState<decltype(mode)::value>(); });
 }
 
 void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements) {
@@ -643,17 +629,7 @@ void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& dis
                                   std::to_string(d.point) + " is not finite");
     }
   }
-  switch (config_.mode) {
-    case DeformationMode::kRigid:
-      applyDisplacements<DeformationMode::kRigid>(displacements);
-      break;
-    case DeformationMode::kLinear:
-      applyDisplacements<DeformationMode::kLinear>(displacements);
-      break;
-    case DeformationMode::kQuadratic:
-      applyDisplacements<DeformationMode::kQuadratic>(displacements);
-      break;
-  }
+  withMode([&](auto mode) { applyDisplacements<decltype(mode)::value>(displacements); });
 }
 
 template <DeformationMode Mode, bool Damped>

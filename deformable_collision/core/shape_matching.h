@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
+#include <type_traits>
 #include <string>
 #include <vector>
 
@@ -160,6 +161,10 @@ class ShapeMatchingBody {
   const ClusterDeformation& deformation(std::size_t k) const { return deformations_[k]; }
 
  private:
+  /// Calls action(std::integral_constant<DeformationMode, mode>{}) for the configured mode,
+  /// so that the per-point kernels are compiled per mode.
+  template <typename Action>
+  void withMode(Action&& action);
   template <DeformationMode Mode, bool Damped>
   void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);
   template <DeformationMode Mode>
