@@ -120,19 +120,6 @@ Moments<K> clusterMoments(const Cluster& cluster, double point_mass_kg,
   return exclusive;
 }
 
-/// g = T f + t for one point, on scalars.
-template <int K>
-inline void goalOf(const double (&transform)[3][K], const double (&translation)[3],
-                   const Eigen::Vector3d& rest_offset, double (&goal)[3]) {
-  double f[K];
-  featureArray<K>(rest_offset, f);
-  for (int r = 0; r < 3; ++r) {
-    double g = translation[r];
-    for (int c = 0; c < K; ++c) g += transform[r][c] * f[c];
-    goal[r] = g;
-  }
-}
-
 /// Moments of the whole cluster as stored sums.
 template <int K, bool WithMomentum, bool WithSpin>
 ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
@@ -195,21 +182,46 @@ void setGoalTransform(const Cluster& cluster, const Eigen::Matrix<double, 3, K>&
       deformation.center_of_mass - transform * cluster.mean_features.template head<K>();
 }
 
-/// A cluster's goal transform as plain arrays for the per-point kernels.
+/// g = T q~ + t on plain arrays, for the per-point kernels.
 template <int K>
 struct GoalKernel {
   double transform[3][K];
   double translation[3];
-  explicit GoalKernel(const ClusterDeformation& deformation) {
+  GoalKernel(const Eigen::Matrix<double, 3, 9>& transform_in, const Eigen::Vector3d& translation_in) {
     for (int r = 0; r < 3; ++r) {
-      translation[r] = deformation.translation[r];
-      for (int c = 0; c < K; ++c) transform[r][c] = deformation.transform(r, c);
+      translation[r] = translation_in[r];
+      for (int c = 0; c < K; ++c) transform[r][c] = transform_in(r, c);
+    }
+  }
+  explicit GoalKernel(const ClusterDeformation& deformation)
+      : GoalKernel(deformation.transform, deformation.translation) {}
+  void goalFromFeatures(const double (&f)[K], double (&out)[3]) const {
+    for (int r = 0; r < 3; ++r) {
+      double g = translation[r];
+      for (int c = 0; c < K; ++c) g += transform[r][c] * f[c];
+      out[r] = g;
     }
   }
   void goal(const Eigen::Vector3d& rest_offset, double (&out)[3]) const {
-    goalOf<K>(transform, translation, rest_offset, out);
+    double f[K];
+    featureArray<K>(rest_offset, f);
+    goalFromFeatures(f, out);
   }
 };
+
+/// @throw std::invalid_argument unless `values` has one finite vector per point.
+void requireOnePerPoint(const std::vector<Eigen::Vector3d>& values, std::size_t points,
+                        const char* what, const char* plural) {
+  if (values.size() != points) {
+    throw std::invalid_argument("got " + std::to_string(values.size()) + " " + plural +
+                                " for an object of " + std::to_string(points) + " points");
+  }
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (!values[i].allFinite()) {
+      throw std::invalid_argument(std::string(what) + " " + std::to_string(i) + " is not finite");
+    }
+  }
+}
 
 std::string describe(const char* field, double value, const char* requirement) {
   std::ostringstream out;
@@ -537,16 +549,7 @@ std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observe
 }
 
 void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positions) {
-  if (positions.size() != positions_.size()) {
-    throw std::invalid_argument("got " + std::to_string(positions.size()) +
-                                " positions for an object of " +
-                                std::to_string(positions_.size()) + " points");
-  }
-  for (std::size_t i = 0; i < positions.size(); ++i) {
-    if (!positions[i].allFinite()) {
-      throw std::invalid_argument("position " + std::to_string(i) + " is not finite");
-    }
-  }
+  requireOnePerPoint(positions, positions_.size(), "position", "positions");
   track(positions);
 }
 
@@ -603,16 +606,7 @@ void ShapeMatchingBody::addVelocity(const Eigen::Vector3d& velocity_change_mps) 
 }
 
 void ShapeMatchingBody::setVelocities(const std::vector<Eigen::Vector3d>& velocities) {
-  if (velocities.size() != velocities_.size()) {
-    throw std::invalid_argument("got " + std::to_string(velocities.size()) +
-                                " velocities for an object of " +
-                                std::to_string(velocities_.size()) + " points");
-  }
-  for (std::size_t i = 0; i < velocities.size(); ++i) {
-    if (!velocities[i].allFinite()) {
-      throw std::invalid_argument("velocity " + std::to_string(i) + " is not finite");
-    }
-  }
+  requireOnePerPoint(velocities, velocities_.size(), "velocity", "velocities");
   velocities_ = velocities;
   withMode([&](auto mode) { sumCurrentState<decltype(mode)::value>(); });
 }
@@ -711,12 +705,7 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   // Move the points; the same pass sums the moved points for the next fit.
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
-    double transform[3][K];
-    double translation[3];
-    for (int r = 0; r < 3; ++r) {
-      translation[r] = goal_translations_[k][r];
-      for (int c = 0; c < K; ++c) transform[r][c] = goal_transforms_[k](r, c);
-    }
+    const GoalKernel<K> kernel(goal_transforms_[k], goal_translations_[k]);
     const Eigen::Vector3d reference = deformations_[k].center_of_mass;
     Moments<K> next;
     double goal[3];
@@ -725,11 +714,7 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
       const std::uint32_t i = cluster.points[j];
       double f[K];
       featureArray<K>(cluster.rest_offsets[j], f);
-      for (int r = 0; r < 3; ++r) {
-        double g = translation[r];
-        for (int c = 0; c < K; ++c) g += transform[r][c] * f[c];
-        goal[r] = g;
-      }
+      kernel.goalFromFeatures(f, goal);
       double* x = positions_[i].data();
       double* v = velocities_[i].data();
       if constexpr (Damped) rigidVelocity(positions_[i], target_velocity);
@@ -751,7 +736,7 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     }
     for (std::size_t j = cluster.exclusive_count; j < cluster.points.size(); ++j) {
       const std::uint32_t i = cluster.points[j];
-      goalOf<K>(transform, translation, cluster.rest_offsets[j], goal);
+      kernel.goal(cluster.rest_offsets[j], goal);
       goal_sums_[i] += Eigen::Vector3d(goal[0], goal[1], goal[2]);
       if constexpr (Damped) {
         rigidVelocity(positions_[i], target_velocity);
