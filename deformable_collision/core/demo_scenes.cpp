@@ -205,14 +205,26 @@ std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points, SceneC
   return built;
 }
 
-void driveDemoScene(DemoScene scene, Scene& built, double time_s) {
-  if (scene != DemoScene::kGripper) return;
+std::optional<Eigen::Isometry3d> demoKinematicPose(DemoScene scene, const std::string& object,
+                                                   double time_s) {
+  if (scene != DemoScene::kGripper) return std::nullopt;
+  double side = 0.0;
+  if (object == "jaw_left") side = -1.0;
+  if (object == "jaw_right") side = 1.0;
+  if (side == 0.0) return std::nullopt;
   // The jaws close from 0.2 m apart to 0.12 m (on a 0.2 m fruit) over two seconds, then hold.
-  const double gap = 0.2 - 0.04 * std::min(time_s, 2.0);
-  for (const auto& [name, side] : {std::pair{"jaw_left", -1.0}, std::pair{"jaw_right", 1.0}}) {
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.translation() = Eigen::Vector3d(side * (gap / 2 + 0.02), 0.0, 0.1);
-    built.setPose(*built.findObject(name), pose);
+  const double gap = 0.2 - 0.04 * std::clamp(time_s, 0.0, 2.0);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(side * (gap / 2 + 0.02), 0.0, 0.1);
+  return pose;
+}
+
+void driveDemoScene(DemoScene scene, Scene& built, double time_s) {
+  for (std::size_t i = 0; i < built.objectCount(); ++i) {
+    if (built.objectConfig(i).kind != ObjectKind::kKinematic) continue;
+    if (const auto pose = demoKinematicPose(scene, built.objectConfig(i).name, time_s)) {
+      built.setPose(i, *pose);
+    }
   }
 }
 

@@ -32,6 +32,11 @@ std::size_t defaultPointCount(DemoScene scene);
 std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points = 0,
                                      SceneConfig config = SceneConfig{});
 
+/// Where kinematic object `object` of a built-in scene is at `time_s` (a pose of its rest
+/// shape); std::nullopt if the scene has no such kinematic object.
+std::optional<Eigen::Isometry3d> demoKinematicPose(DemoScene scene, const std::string& object,
+                                                   double time_s);
+
 /// Moves the kinematic objects of a built-in scene to where they are at `time_s` (the
 /// gripper's jaws); nothing for the others.
 void driveDemoScene(DemoScene scene, Scene& built, double time_s);

@@ -191,6 +191,18 @@ std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vect
   return objects_.size() - 1;
 }
 
+void Scene::resetRestShape(std::size_t object, std::vector<Eigen::Vector3d> rest_points_m) {
+  std::unique_ptr<Object>& slot = objects_.at(object);
+  std::unique_ptr<Object> replacement;
+  try {
+    replacement = std::make_unique<Object>(slot->config, std::move(rest_points_m), config_.tree);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("object '" + slot->config.name + "': " + e.what());
+  }
+  if (!replacement->dynamic()) replacement->computeNodePlanes();
+  slot = std::move(replacement);
+}
+
 void Scene::setPose(std::size_t object, const Eigen::Isometry3d& pose) {
   Object& o = *objects_.at(object);
   if (o.config.kind != ObjectKind::kKinematic) {
@@ -659,5 +671,18 @@ const ObjectConfig& Scene::objectConfig(std::size_t object) const {
 const ShapeMatchingBody& Scene::body(std::size_t object) const { return objects_.at(object)->body; }
 
 const SphereTree& Scene::tree(std::size_t object) const { return objects_.at(object)->tree; }
+
+const Sphere& Scene::currentSphere(std::size_t object, std::uint32_t node) {
+  Object& o = *objects_.at(object);
+  if (node >= o.tree.nodeCount()) {
+    throw std::out_of_range("node " + std::to_string(node) + " of object '" + o.config.name +
+                            "' is outside [0, " + std::to_string(o.tree.nodeCount()) + ")");
+  }
+  if (o.stale) {
+    o.tree.beginCycle();
+    o.stale = false;
+  }
+  return o.tree.sphere(node);
+}
 
 }  // namespace deformable_collision

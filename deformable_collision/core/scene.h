@@ -84,6 +84,11 @@ class Scene {
   /// @throw std::invalid_argument for an empty or duplicate name or a bad shape.
   std::size_t addObject(const ObjectConfig& config, std::vector<Eigen::Vector3d> rest_points_m);
 
+  /// Replaces an object's rest shape (its points, clusters and hierarchy) and puts it there
+  /// at rest; the point count may change. Nothing changes if it throws.
+  /// @throw std::invalid_argument for a bad shape, std::out_of_range for a bad index.
+  void resetRestShape(std::size_t object, std::vector<Eigen::Vector3d> rest_points_m);
+
   /// Moves a kinematic object rigidly to `pose` (applied to its rest shape).
   /// @throw std::invalid_argument if the object is not kinematic or the pose not finite.
   void setPose(std::size_t object, const Eigen::Isometry3d& pose);
@@ -123,6 +128,10 @@ class Scene {
   const ObjectConfig& objectConfig(std::size_t object) const;
   const ShapeMatchingBody& body(std::size_t object) const;
   const SphereTree& tree(std::size_t object) const;
+  /// The sphere of `node` of `object` on the current state, computed on demand (drawing
+  /// the hierarchy touches only what is drawn).
+  /// @throw std::out_of_range for a bad object or node index.
+  const Sphere& currentSphere(std::size_t object, std::uint32_t node);
 
  private:
   struct Object;

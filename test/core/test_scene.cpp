@@ -312,5 +312,51 @@ TEST(Scene, KinematicAndTrackedObjectsFollowTheirInputs) {
   EXPECT_LT((scene.body(t).positions()[3] - (rest[3] + Eigen::Vector3d(0, 0, 0.5))).norm(), 1e-9);
 }
 
+TEST(Scene, ResetRestShapeReplacesTheShapeOrNothing) {
+  Scene scene(SceneConfig{});
+  ObjectConfig ball;
+  ball.name = "ball";
+  ball.shape.clusters = 2;
+  const std::size_t b = scene.addObject(ball, sampleBox(100, {0.1, 0.1, 0.1}, 6));
+  scene.cycle();
+  const Points before = scene.body(b).positions();
+  EXPECT_THROW(scene.resetRestShape(b, Points(1, Eigen::Vector3d::Zero())), std::invalid_argument);
+  EXPECT_THROW(scene.resetRestShape(b, Points{}), std::invalid_argument);
+  EXPECT_EQ(scene.body(b).positions(), before);
+  EXPECT_THROW(scene.resetRestShape(7, before), std::out_of_range);
+
+  const Points bigger = sampleBox(300, {0.2, 0.2, 0.2}, 7);
+  scene.resetRestShape(b, bigger);
+  EXPECT_EQ(scene.body(b).positions(), bigger);
+  EXPECT_GE(scene.tree(b).pointIndices().size(), bigger.size());  // seam points twice
+  for (std::uint32_t n = 0; n < scene.tree(b).nodeCount(); ++n) {
+    const Sphere& sphere = scene.currentSphere(b, n);
+    const SphereNode& node = scene.tree(b).node(n);
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      EXPECT_LE((bigger[scene.tree(b).pointIndices()[s]] - sphere.center).norm(),
+                sphere.radius * (1 + 1e-12));
+    }
+  }
+  EXPECT_THROW(scene.currentSphere(b, static_cast<std::uint32_t>(scene.tree(b).nodeCount())),
+               std::out_of_range);
+}
+
+TEST(Scene, CurrentSpheresFollowTheResponse) {
+  auto scene = makeDemoScene(DemoScene::kThreeObjects, 8000);
+  for (int step = 0; step < 60; ++step) scene->cycle();
+  for (std::size_t o = 0; o < scene->objectCount(); ++o) {
+    const auto& positions = scene->body(o).positions();
+    const SphereTree& tree = scene->tree(o);
+    for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
+      const Sphere& sphere = scene->currentSphere(o, n);
+      const SphereNode& node = tree.node(n);
+      for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+        ASSERT_LE((positions[tree.pointIndices()[s]] - sphere.center).norm(),
+                  sphere.radius * (1 + 1e-12) + 1e-15);
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace deformable_collision
