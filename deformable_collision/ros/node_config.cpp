@@ -1,0 +1,292 @@
+#include "deformable_collision/ros/node_config.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+namespace deformable_collision {
+namespace {
+
+using XmlRpc::XmlRpcValue;
+
+const char* typeName(XmlRpcValue::Type type) {
+  switch (type) {
+    case XmlRpcValue::TypeBoolean:
+      return "a boolean";
+    case XmlRpcValue::TypeInt:
+      return "an integer";
+    case XmlRpcValue::TypeDouble:
+      return "a number";
+    case XmlRpcValue::TypeString:
+      return "a string";
+    case XmlRpcValue::TypeArray:
+      return "a list";
+    case XmlRpcValue::TypeStruct:
+      return "a dictionary";
+    default:
+      return "an unsupported value";
+  }
+}
+
+/// Reads the members of one parameter dictionary, remembering which it used, so that
+/// finish() can name the keys nobody asked for. `path` prefixes every message.
+class ParamReader {
+ public:
+  ParamReader(XmlRpcValue params, std::string path)
+      : params_(std::move(params)), path_(std::move(path)) {
+    if (params_.getType() != XmlRpcValue::TypeStruct) {
+      fail(path_.empty() ? "parameters" : path_,
+           std::string("must be a dictionary, got ") + typeName(params_.getType()));
+    }
+  }
+
+  [[noreturn]] static void fail(const std::string& name, const std::string& problem) {
+    throw std::invalid_argument("parameter " + name + " " + problem);
+  }
+
+  std::string name(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+  const XmlRpcValue* find(const std::string& key) {
+    used_.insert(key);
+    if (!params_.hasMember(key)) return nullptr;
+    return &params_[key];
+  }
+
+  double number(const std::string& key, double fallback, double low, double high,
+                bool low_open = false) {
+    const XmlRpcValue* value = find(key);
+    if (value == nullptr) return fallback;
+    const double x = toDouble(*value, name(key));
+    const bool above = low_open ? x > low : x >= low;
+    if (!(std::isfinite(x) && above && x <= high)) {
+      std::ostringstream out;
+      out << "= " << x << " must be in " << (low_open ? "(" : "[") << low << ", " << high << "]";
+      fail(name(key), out.str());
+    }
+    return x;
+  }
+
+  long integer(const std::string& key, long fallback, long low, long high) {
+    const XmlRpcValue* value = find(key);
+    if (value == nullptr) return fallback;
+    if (value->getType() != XmlRpcValue::TypeInt) {
+      fail(name(key), std::string("must be an integer, got ") + typeName(value->getType()));
+    }
+    const long x = static_cast<int>(*value);
+    if (x < low || x > high) {
+      fail(name(key), "= " + std::to_string(x) + " must be in [" + std::to_string(low) + ", " +
+                          std::to_string(high) + "]");
+    }
+    return x;
+  }
+
+  bool flag(const std::string& key, bool fallback) {
+    const XmlRpcValue* value = find(key);
+    if (value == nullptr) return fallback;
+    if (value->getType() != XmlRpcValue::TypeBoolean) {
+      fail(name(key), std::string("must be true or false, got ") + typeName(value->getType()));
+    }
+    return static_cast<bool>(*value);
+  }
+
+  std::string text(const std::string& key, const std::string& fallback) {
+    const XmlRpcValue* value = find(key);
+    if (value == nullptr) return fallback;
+    if (value->getType() != XmlRpcValue::TypeString) {
+      fail(name(key), std::string("must be a string, got ") + typeName(value->getType()));
+    }
+    return static_cast<std::string>(*value);
+  }
+
+  std::string requiredText(const std::string& key) {
+    if (!params_.hasMember(key)) fail(name(key), "is missing");
+    const std::string value = text(key, "");
+    if (value.empty()) fail(name(key), "is empty");
+    return value;
+  }
+
+  Eigen::Vector3d vector3(const std::string& key, const Eigen::Vector3d& fallback) {
+    const XmlRpcValue* value = find(key);
+    if (value == nullptr) return fallback;
+    if (value->getType() != XmlRpcValue::TypeArray || value->size() != 3) {
+      fail(name(key), "must be a list of 3 numbers [x, y, z]");
+    }
+    Eigen::Vector3d v;
+    for (int i = 0; i < 3; ++i) {
+      v[i] = toDouble((*value)[i], name(key) + "[" + std::to_string(i) + "]");
+      if (!std::isfinite(v[i])) fail(name(key), "must be finite");
+    }
+    return v;
+  }
+
+  /// Throws for the first key that was never asked for.
+  void finish() {
+    for (auto it = params_.begin(); it != params_.end(); ++it) {
+      if (used_.count(it->first) == 0) fail(name(it->first), "is not a known parameter");
+    }
+  }
+
+ private:
+  static double toDouble(const XmlRpcValue& value, const std::string& name) {
+    if (value.getType() == XmlRpcValue::TypeInt) return static_cast<int>(value);
+    if (value.getType() == XmlRpcValue::TypeDouble) return static_cast<double>(value);
+    fail(name, std::string("must be a number, got ") + typeName(value.getType()));
+  }
+
+  XmlRpcValue params_;
+  std::string path_;
+  std::set<std::string> used_;
+};
+
+ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
+  ParamReader read(entry, path);
+  ObjectParams params;
+  ObjectConfig& object = params.object;
+  object.name = read.requiredText("name");
+  // The name becomes a topic (~deformed/<name>) and a marker namespace.
+  const bool graph_name =
+      std::isalpha(static_cast<unsigned char>(object.name[0])) &&
+      std::all_of(object.name.begin(), object.name.end(), [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+      });
+  if (!graph_name) {
+    ParamReader::fail(read.name("name"), "= '" + object.name +
+                                             "' must start with a letter and hold only letters, "
+                                             "digits and '_' (it names the topic ~deformed/<name>)");
+  }
+  params.topic = read.requiredText("topic");
+  params.follow_frame = read.text("follow_frame", "");
+  const bool dynamic = read.flag("dynamic", true);
+
+  const std::string on_cloud = read.text("on_cloud", toString(OnCloud::kIgnore));
+  const auto parsed_on_cloud = parseOnCloud(on_cloud);
+  if (!parsed_on_cloud) {
+    ParamReader::fail(read.name("on_cloud"), "= '" + on_cloud + "' must be track, reset or ignore");
+  }
+  params.on_cloud = *parsed_on_cloud;
+
+  const bool mode_given = read.find("mode") != nullptr;
+  const std::string mode = read.text("mode", toString(DeformationMode::kLinear));
+  const auto parsed_mode = parseDeformationMode(mode);
+  if (!parsed_mode) {
+    ParamReader::fail(read.name("mode"), "= '" + mode + "' must be rigid, linear or quadratic");
+  }
+
+  if (dynamic) {
+    if (!params.follow_frame.empty()) {
+      ParamReader::fail(read.name("follow_frame"),
+                        "is set on a dynamic object; follow_frame moves a kinematic one "
+                        "(dynamic: false)");
+    }
+    if (params.on_cloud == OnCloud::kTrack) {
+      ParamReader::fail(read.name("on_cloud"),
+                        "= 'track' needs dynamic: false (a tracked object follows its clouds, "
+                        "a dynamic one is simulated)");
+    }
+    object.kind = ObjectKind::kDynamic;
+  } else if (!params.follow_frame.empty()) {
+    if (params.on_cloud == OnCloud::kTrack) {
+      ParamReader::fail(read.name("on_cloud"),
+                        "= 'track' conflicts with follow_frame (the frame moves the object)");
+    }
+    if (mode_given && *parsed_mode != DeformationMode::kRigid) {
+      ParamReader::fail(read.name("mode"), "= '" + mode +
+                                               "' but an object that follows a frame is rigid");
+    }
+    object.kind = ObjectKind::kKinematic;
+  } else {
+    object.kind = params.on_cloud == OnCloud::kTrack ? ObjectKind::kTracked : ObjectKind::kStatic;
+  }
+
+  ShapeMatchingConfig& shape = object.shape;
+  shape.mode = object.kind == ObjectKind::kKinematic ? DeformationMode::kRigid : *parsed_mode;
+  shape.clusters = static_cast<int>(read.integer("clusters", shape.clusters, 1, 4096));
+  shape.stiffness = read.number("stiffness", shape.stiffness, 0.0, 1.0);
+  shape.beta = read.number("beta", shape.beta, 0.0, 1.0);
+  shape.damping = read.number("damping", shape.damping, 0.0, 1.0);
+  shape.mass_kg = read.number("mass_kg", shape.mass_kg, 0.0, 1e9, true);
+  shape.preserve_volume = read.flag("preserve_volume", shape.preserve_volume);
+  shape.cluster_overlap_ratio =
+      read.number("cluster_overlap_ratio", shape.cluster_overlap_ratio, 0.0, 1.0);
+  read.finish();
+  return params;
+}
+
+}  // namespace
+
+std::optional<OnCloud> parseOnCloud(const std::string& name) {
+  for (const auto value : {OnCloud::kTrack, OnCloud::kReset, OnCloud::kIgnore}) {
+    if (name == toString(value)) return value;
+  }
+  return std::nullopt;
+}
+
+const char* toString(OnCloud on_cloud) {
+  switch (on_cloud) {
+    case OnCloud::kTrack:
+      return "track";
+    case OnCloud::kReset:
+      return "reset";
+    case OnCloud::kIgnore:
+      return "ignore";
+  }
+  return "unknown";
+}
+
+NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params) {
+  ParamReader read(params, "");
+  NodeConfig config;
+  config.fixed_frame = read.text("fixed_frame", config.fixed_frame);
+  if (config.fixed_frame.empty()) ParamReader::fail("fixed_frame", "is empty");
+  config.rate_hz = read.number("rate_hz", config.rate_hz, 0.0, 10000.0, true);
+  config.max_points_per_object = static_cast<std::size_t>(read.integer(
+      "max_points_per_object", static_cast<long>(config.max_points_per_object), 1,
+      std::numeric_limits<int>::max()));
+
+  SceneConfig& scene = config.scene;
+  scene.dt_s = read.number("dt", scene.dt_s, 0.0, 0.1, true);
+  scene.gravity_mps2 = read.vector3("gravity", scene.gravity_mps2);
+  scene.level = static_cast<int>(read.integer("level", scene.level, -1, 255));
+  scene.contact_distance_m =
+      read.number("contact_distance_m", scene.contact_distance_m, 0.0, 1e6, true);
+  scene.friction = read.number("friction", scene.friction, 0.0, 1e3);
+  if (const XmlRpcValue* tree = read.find("tree")) {
+    ParamReader tree_read(*tree, "tree");
+    scene.tree.leaf_size = static_cast<int>(tree_read.integer("leaf_size", scene.tree.leaf_size, 1, 1 << 20));
+    scene.tree.branching = static_cast<int>(tree_read.integer("branching", scene.tree.branching, 2, 64));
+    scene.tree.exact_radius_points = static_cast<int>(
+        tree_read.integer("exact_radius_points", scene.tree.exact_radius_points, 0, 1 << 20));
+    tree_read.finish();
+  }
+  if (const XmlRpcValue* markers = read.find("markers")) {
+    ParamReader markers_read(*markers, "markers");
+    config.markers_colliding_only = markers_read.flag("colliding_only", config.markers_colliding_only);
+    markers_read.finish();
+  }
+
+  const XmlRpcValue* objects = read.find("objects");
+  if (objects == nullptr) ParamReader::fail("objects", "is missing: list the objects to simulate");
+  if (objects->getType() != XmlRpcValue::TypeArray || objects->size() == 0) {
+    ParamReader::fail("objects", "must be a non-empty list of dictionaries");
+  }
+  std::set<std::string> names, topics;
+  for (int i = 0; i < objects->size(); ++i) {
+    const std::string path = "objects[" + std::to_string(i) + "]";
+    ObjectParams object = parseObject((*objects)[i], path);
+    if (!names.insert(object.object.name).second) {
+      ParamReader::fail(path + ".name", "= '" + object.object.name + "' is used by an earlier object");
+    }
+    if (!topics.insert(object.topic).second) {
+      ParamReader::fail(path + ".topic", "= '" + object.topic + "' is used by an earlier object");
+    }
+    config.objects.push_back(std::move(object));
+  }
+  read.finish();
+  return config;
+}
+
+}  // namespace deformable_collision

@@ -1,0 +1,51 @@
+#pragma once
+
+#include <xmlrpcpp/XmlRpcValue.h>
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "deformable_collision/core/scene.h"
+
+namespace deformable_collision {
+
+/// What a later cloud of an object does once its first valid cloud has set the rest shape.
+enum class OnCloud {
+  kTrack,   ///< Observed positions of the same points (same count): registered each cloud.
+  kReset,   ///< A new rest shape.
+  kIgnore,  ///< Nothing.
+};
+
+std::optional<OnCloud> parseOnCloud(const std::string& name);
+const char* toString(OnCloud on_cloud);
+
+/// One entry of the `objects` parameter.
+struct ObjectParams {
+  std::string topic;          ///< PointCloud2 input, resolved in the node's namespace.
+  OnCloud on_cloud = OnCloud::kIgnore;
+  std::string follow_frame;   ///< Kinematic objects: the tf frame they move with.
+  /// Name, kind and shape matching. The kind follows from `dynamic`, `follow_frame` and
+  /// `on_cloud`: dynamic; kinematic (follows a frame); tracked (on_cloud track); or static.
+  ObjectConfig object;
+};
+
+/// Every parameter of the node, in SI units, validated.
+struct NodeConfig {
+  std::string fixed_frame = "world";
+  double rate_hz = 100.0;
+  std::size_t max_points_per_object = 1000000;
+  bool markers_colliding_only = false;
+  SceneConfig scene;  ///< dt, gravity, level, contact_distance_m, friction, tree.
+  std::vector<ObjectParams> objects;
+};
+
+/// Fills a NodeConfig from the node's private parameters (a struct, as returned by
+/// getParam on the private namespace), checking every value before anything is used.
+/// Unknown keys are errors, so that a misspelt parameter is not silently replaced by its
+/// default.
+/// @throw std::invalid_argument whose message names the parameter and says what is wrong.
+NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params);
+
+}  // namespace deformable_collision

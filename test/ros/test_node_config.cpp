@@ -1,0 +1,156 @@
+#include "deformable_collision/ros/node_config.h"
+
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <string>
+
+namespace deformable_collision {
+namespace {
+
+using XmlRpc::XmlRpcValue;
+
+XmlRpcValue object(const std::string& name, const std::string& topic) {
+  XmlRpcValue value;
+  value["name"] = name;
+  value["topic"] = topic;
+  return value;
+}
+
+/// The parameters of a scene with one object of each kind.
+XmlRpcValue validParams() {
+  XmlRpcValue params;
+  params["fixed_frame"] = "odom";
+  params["rate_hz"] = 50;  // an integer where a number is expected must be accepted
+  params["dt"] = 0.02;
+  params["level"] = 3;
+  params["contact_distance_m"] = 0.01;
+  params["max_points_per_object"] = 5000;
+  params["gravity"][0] = 0.0;
+  params["gravity"][1] = 0.0;
+  params["gravity"][2] = -1.62;
+  params["markers"]["colliding_only"] = true;
+  XmlRpcValue& objects = params["objects"];
+  objects[0] = object("floor", "/floor/points");
+  objects[0]["dynamic"] = false;
+  objects[1] = object("fruit", "fruit/points");
+  objects[1]["mode"] = "quadratic";
+  objects[1]["clusters"] = 3;
+  objects[1]["stiffness"] = 0.8;
+  objects[1]["beta"] = 0.4;
+  objects[1]["mass_kg"] = 0.25;
+  objects[2] = object("jaw", "/jaw/points");
+  objects[2]["dynamic"] = false;
+  objects[2]["follow_frame"] = "gripper_link";
+  objects[3] = object("hand", "/hand/points");
+  objects[3]["dynamic"] = false;
+  objects[3]["on_cloud"] = "track";
+  objects[3]["mode"] = "rigid";
+  return params;
+}
+
+TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
+  const NodeConfig config = parseNodeConfig(validParams());
+  EXPECT_EQ(config.fixed_frame, "odom");
+  EXPECT_DOUBLE_EQ(config.rate_hz, 50.0);
+  EXPECT_DOUBLE_EQ(config.scene.dt_s, 0.02);
+  EXPECT_EQ(config.scene.level, 3);
+  EXPECT_DOUBLE_EQ(config.scene.contact_distance_m, 0.01);
+  EXPECT_EQ(config.max_points_per_object, 5000u);
+  EXPECT_TRUE(config.scene.gravity_mps2.isApprox(Eigen::Vector3d(0, 0, -1.62)));
+  EXPECT_TRUE(config.markers_colliding_only);
+  ASSERT_EQ(config.objects.size(), 4u);
+
+  EXPECT_EQ(config.objects[0].object.kind, ObjectKind::kStatic);
+  const ObjectParams& fruit = config.objects[1];
+  EXPECT_EQ(fruit.object.kind, ObjectKind::kDynamic);
+  EXPECT_EQ(fruit.topic, "fruit/points");
+  EXPECT_EQ(fruit.on_cloud, OnCloud::kIgnore);
+  EXPECT_EQ(fruit.object.shape.mode, DeformationMode::kQuadratic);
+  EXPECT_EQ(fruit.object.shape.clusters, 3);
+  EXPECT_DOUBLE_EQ(fruit.object.shape.stiffness, 0.8);
+  EXPECT_DOUBLE_EQ(fruit.object.shape.beta, 0.4);
+  EXPECT_DOUBLE_EQ(fruit.object.shape.mass_kg, 0.25);
+  EXPECT_EQ(config.objects[2].object.kind, ObjectKind::kKinematic);
+  EXPECT_EQ(config.objects[2].object.shape.mode, DeformationMode::kRigid);
+  EXPECT_EQ(config.objects[2].follow_frame, "gripper_link");
+  EXPECT_EQ(config.objects[3].object.kind, ObjectKind::kTracked);
+  EXPECT_EQ(config.objects[3].on_cloud, OnCloud::kTrack);
+}
+
+TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
+  XmlRpcValue params;
+  params["objects"][0] = object("ball", "ball/points");
+  const NodeConfig config = parseNodeConfig(params);
+  const NodeConfig defaults;
+  EXPECT_EQ(config.fixed_frame, defaults.fixed_frame);
+  EXPECT_DOUBLE_EQ(config.rate_hz, defaults.rate_hz);
+  EXPECT_EQ(config.scene.level, -1);
+  EXPECT_EQ(config.objects[0].object.kind, ObjectKind::kDynamic);
+  EXPECT_EQ(config.objects[0].object.shape.mode, DeformationMode::kLinear);
+}
+
+struct BadParamCase {
+  std::string name;
+  std::function<void(XmlRpcValue&)> spoil;
+  std::string expected;  ///< The message must contain it (the parameter's name).
+};
+
+class BadParamTest : public ::testing::TestWithParam<BadParamCase> {};
+
+TEST_P(BadParamTest, ThrowsNamingTheParameter) {
+  XmlRpcValue params = validParams();
+  GetParam().spoil(params);
+  try {
+    parseNodeConfig(params);
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(GetParam().expected), std::string::npos) << e.what();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    NodeConfig, BadParamTest,
+    ::testing::Values(
+        BadParamCase{"NotADictionary", [](XmlRpcValue& p) { p = XmlRpcValue(3); }, "dictionary"},
+        BadParamCase{"ZeroRate", [](XmlRpcValue& p) { p["rate_hz"] = 0.0; }, "rate_hz = 0"},
+        BadParamCase{"RateAsString", [](XmlRpcValue& p) { p["rate_hz"] = "fast"; }, "rate_hz must be a number"},
+        BadParamCase{"LargeStep", [](XmlRpcValue& p) { p["dt"] = 0.5; }, "dt = 0.5"},
+        BadParamCase{"LevelBelowMinusOne", [](XmlRpcValue& p) { p["level"] = -2; }, "level = -2"},
+        BadParamCase{"LevelNotInteger", [](XmlRpcValue& p) { p["level"] = 2.5; }, "level must be an integer"},
+        BadParamCase{"NegativeContactDistance", [](XmlRpcValue& p) { p["contact_distance_m"] = -0.1; }, "contact_distance_m"},
+        BadParamCase{"GravityOfTwo", [](XmlRpcValue& p) {
+          XmlRpcValue two; two[0] = 0.0; two[1] = -9.81; p["gravity"] = two; }, "gravity must be a list of 3"},
+        BadParamCase{"EmptyFrame", [](XmlRpcValue& p) { p["fixed_frame"] = ""; }, "fixed_frame is empty"},
+        BadParamCase{"ZeroPointLimit", [](XmlRpcValue& p) { p["max_points_per_object"] = 0; }, "max_points_per_object"},
+        BadParamCase{"MisspeltTopLevel", [](XmlRpcValue& p) { p["contact_distance"] = 0.1; }, "contact_distance is not a known"},
+        BadParamCase{"MisspeltMarkers", [](XmlRpcValue& p) { p["markers"]["coliding_only"] = true; }, "markers.coliding_only"},
+        BadParamCase{"NoObjects", [](XmlRpcValue& p) {
+          XmlRpcValue none; none.setSize(0); p["objects"] = none; }, "objects must be a non-empty list"},
+        BadParamCase{"ObjectsMissing", [](XmlRpcValue& p) {
+          XmlRpcValue kept; kept["rate_hz"] = p["rate_hz"]; p = kept; }, "objects is missing"},
+        BadParamCase{"NameMissing", [](XmlRpcValue& p) { p["objects"][1] = XmlRpcValue(); p["objects"][1]["topic"] = "t"; }, "objects[1].name is missing"},
+        BadParamCase{"NameNotAGraphName", [](XmlRpcValue& p) { p["objects"][1]["name"] = "my fruit"; }, "objects[1].name = 'my fruit'"},
+        BadParamCase{"NameTwice", [](XmlRpcValue& p) { p["objects"][3]["name"] = "fruit"; }, "objects[3].name = 'fruit' is used"},
+        BadParamCase{"TopicTwice", [](XmlRpcValue& p) { p["objects"][1]["topic"] = "/floor/points"; }, "objects[1].topic"},
+        BadParamCase{"UnknownMode", [](XmlRpcValue& p) { p["objects"][1]["mode"] = "cubic"; }, "objects[1].mode = 'cubic'"},
+        BadParamCase{"StiffnessAboveOne", [](XmlRpcValue& p) { p["objects"][1]["stiffness"] = 1.5; }, "objects[1].stiffness = 1.5"},
+        BadParamCase{"ZeroMass", [](XmlRpcValue& p) { p["objects"][1]["mass_kg"] = 0.0; }, "objects[1].mass_kg = 0"},
+        BadParamCase{"ZeroClusters", [](XmlRpcValue& p) { p["objects"][1]["clusters"] = 0; }, "objects[1].clusters = 0"},
+        BadParamCase{"MassWithoutUnit", [](XmlRpcValue& p) { p["objects"][1]["mass"] = 1.0; }, "objects[1].mass is not a known"},
+        BadParamCase{"UnknownOnCloud", [](XmlRpcValue& p) { p["objects"][1]["on_cloud"] = "merge"; }, "objects[1].on_cloud = 'merge'"},
+        BadParamCase{"DynamicTracked", [](XmlRpcValue& p) { p["objects"][1]["on_cloud"] = "track"; }, "objects[1].on_cloud = 'track' needs dynamic: false"},
+        BadParamCase{"DynamicFollowing", [](XmlRpcValue& p) { p["objects"][1]["follow_frame"] = "link"; }, "objects[1].follow_frame"},
+        BadParamCase{"DeformingFollower", [](XmlRpcValue& p) { p["objects"][2]["mode"] = "linear"; }, "objects[2].mode = 'linear'"},
+        BadParamCase{"DynamicAsString", [](XmlRpcValue& p) { p["objects"][1]["dynamic"] = "yes"; }, "objects[1].dynamic must be true or false"}),
+    [](const auto& info) { return info.param.name; });
+
+TEST(NodeConfig, OnCloudNamesRoundTrip) {
+  for (const auto value : {OnCloud::kTrack, OnCloud::kReset, OnCloud::kIgnore}) {
+    EXPECT_EQ(parseOnCloud(toString(value)), value);
+  }
+  EXPECT_FALSE(parseOnCloud("Track"));
+}
+
+}  // namespace
+}  // namespace deformable_collision
