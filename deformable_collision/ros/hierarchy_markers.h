@@ -1,0 +1,36 @@
+#pragma once
+
+#include <std_msgs/Header.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "deformable_collision/core/scene.h"
+
+namespace deformable_collision {
+
+/// Radius a sphere is drawn with: `radius_m` rounded up to the next of a geometric series
+/// of radii (ratio 2^(1/8)), so that spheres of similar size share one SPHERE_LIST marker.
+/// Never smaller than the true radius, with a margin for the float32 rounding of published
+/// points at `center_norm_m` from the origin.
+double drawnRadius(double radius_m, double center_norm_m);
+
+/// Builds the ~hierarchy MarkerArray: the spheres of one level of every object, one
+/// namespace per object (its name), one SPHERE_LIST marker per drawn radius (scale = the
+/// drawn diameter, points = the centres), coloured by object, spheres in a contact
+/// highlighted. The first marker deletes the previous array's markers.
+class HierarchyMarkers {
+ public:
+  /// Spheres of `level` (leaves above it stand for themselves), on the current state.
+  /// `contacts` mark the colliding spheres; with `colliding_only` only those are drawn.
+  void build(Scene& scene, int level, const std::vector<SceneContact>& contacts,
+             bool colliding_only, const std_msgs::Header& header,
+             visualization_msgs::MarkerArray& markers);
+
+ private:
+  std::vector<std::vector<std::uint8_t>> colliding_;  ///< Per object, per node.
+  std::vector<std::uint32_t> stack_;
+};
+
+}  // namespace deformable_collision
