@@ -85,6 +85,28 @@ struct Scene::Object {
     }
   }
 
+  /// Dents a node's points by what its contact needs beyond the object's move, once every
+  /// pair has added to that move. A dented point is blocked by the other object: it also
+  /// stops moving into it (the other object takes that momentum). Left alone, the goal step
+  /// turns each cycle's dent into motion towards the contact, and a held contact pumps up
+  /// speed.
+  void applyPendingDents() {
+    const auto& velocities = body.velocities();
+    for (const PendingDent& pending : pending_dents) {
+      const double beyond = pending.depth_unmoved_m - translation.dot(pending.away);
+      if (beyond <= 0.0) continue;
+      const SphereNode& node = tree.node(pending.node);
+      for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+        const std::uint32_t point = tree.pointIndices()[s];
+        if (displacement_counts[point]++ == 0) displaced_points.push_back(point);
+        displacement_sums[point] += beyond * pending.away;
+        const double inward = std::min(0.0, (velocities[point] - pending.other_velocity).dot(pending.away));
+        velocity_change_sums[point] -= inward * pending.away;
+      }
+    }
+    pending_dents.clear();
+  }
+
   ObjectConfig config;
   ShapeMatchingBody body;
   SphereTree tree;
@@ -98,6 +120,14 @@ struct Scene::Object {
   std::vector<std::uint32_t> displaced_points;
   std::vector<PointDisplacement> displacements;
   std::vector<Eigen::Vector3d> posed_points;  ///< Kinematic objects: the rest shape posed.
+  /// A contact node's push, kept until the object's move over all its pairs is known.
+  struct PendingDent {
+    std::uint32_t node = 0;
+    Eigen::Vector3d away = Eigen::Vector3d::UnitZ();  ///< Direction this object is pushed.
+    double depth_unmoved_m = 0.0;  ///< How far the node must go if the object did not move.
+    Eigen::Vector3d other_velocity = Eigen::Vector3d::Zero();
+  };
+  std::vector<PendingDent> pending_dents;
   /// The side each partner touched this object from, kept while the contact lasts: an
   /// object pushed past the middle of a thin wall must still be pushed back, not through.
   struct ContactSide {
@@ -415,6 +445,7 @@ void Scene::respond() {
   }
   for (auto& object : objects_) {
     if (!object->dynamic()) continue;
+    object->applyPendingDents();
     const bool moved = object->translation.squaredNorm() > 0.0 ||
                        object->velocity_change.squaredNorm() > 0.0 ||
                        !object->displaced_points.empty();
@@ -452,6 +483,8 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   // a normal from b to a, shared by inverse mass between dynamic nodes.
   pushes_.clear();
   const bool fixed_pair = a.dynamic() != b.dynamic();
+  const Eigen::Vector3d translation_before_a = a.translation;
+  const Eigen::Vector3d translation_before_b = b.translation;
   // The side a lies on, seen from b: as in the last cycle of this contact, or for a new
   // contact, where the objects' centres are.
   Eigen::Vector3d side = a.tree.sphere(0).center - b.tree.sphere(0).center;
@@ -557,28 +590,17 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
       a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
   const Eigen::Vector3d velocity_b =
       b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
-  // A dented point is blocked by the other object: it also stops moving into it (the other
-  // object takes that momentum). Left alone, the goal step turns each cycle's dent into
-  // motion towards the contact, and a held contact pumps up speed.
-  const auto dent = [](Object& object, const SphereNode& node, const Eigen::Vector3d& away,
-                       double beyond, const Eigen::Vector3d& other_velocity) {
-    const auto& velocities = object.body.velocities();
-    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-      const std::uint32_t point = object.tree.pointIndices()[s];
-      if (object.displacement_counts[point]++ == 0) object.displaced_points.push_back(point);
-      object.displacement_sums[point] += beyond * away;
-      const double inward = std::min(0.0, (velocities[point] - other_velocity).dot(away));
-      object.velocity_change_sums[point] -= inward * away;
-    }
-  };
+  // Dents wait until every pair has moved the object: a later pair may move it back, as
+  // the second jaw of a gripper does, and a dent sized against this pair's move alone
+  // would leave the first jaw's contact deep inside.
   for (const ContactPush& push : pushes_) {
-    if (a.dynamic()) {
-      const double beyond = push.depth_a - mean_a.dot(push.normal);
-      if (beyond > 0.0) dent(a, a.tree.node(push.node_a), push.normal, beyond, velocity_b);
+    if (a.dynamic() && push.depth_a > 0.0) {
+      a.pending_dents.push_back({push.node_a, push.normal,
+                                 push.depth_a + translation_before_a.dot(push.normal), velocity_b});
     }
-    if (b.dynamic()) {
-      const double beyond = push.depth_b + mean_b.dot(push.normal);
-      if (beyond > 0.0) dent(b, b.tree.node(push.node_b), -push.normal, beyond, velocity_a);
+    if (b.dynamic() && push.depth_b > 0.0) {
+      b.pending_dents.push_back({push.node_b, -push.normal,
+                                 push.depth_b - translation_before_b.dot(push.normal), velocity_a});
     }
   }
 

@@ -358,5 +358,32 @@ TEST(Scene, CurrentSpheresFollowTheResponse) {
   }
 }
 
+class SqueezeTest : public ::testing::TestWithParam<int> {};
+
+// Both jaws hold the fruit: pairs resolved later must not push it back through earlier ones.
+TEST_P(SqueezeTest, FruitStaysBetweenTheClosedJaws) {
+  SceneConfig config;
+  config.level = GetParam();
+  auto scene = makeDemoScene(DemoScene::kGripper, 0, config);
+  const std::size_t fruit = *scene->findObject("fruit");
+  for (int step = 0; step < 350; ++step) {
+    driveDemoScene(DemoScene::kGripper, *scene, step * scene->config().dt_s);
+    scene->cycle();
+  }
+  // The jaws' inner faces are at x = -0.06 and 0.06 once closed.
+  double low = 1.0, high = -1.0;
+  for (const auto& p : scene->body(fruit).positions()) {
+    low = std::min(low, p.x());
+    high = std::max(high, p.x());
+  }
+  EXPECT_GT(low, -0.06 - 0.25 * scene->config().contact_distance_m);
+  EXPECT_LT(high, 0.06 + 0.25 * scene->config().contact_distance_m);
+}
+
+INSTANTIATE_TEST_SUITE_P(Levels, SqueezeTest, ::testing::Values(-1, 6),
+                         [](const auto& info) {
+                           return info.param < 0 ? std::string("finest") : "level_" + std::to_string(info.param);
+                         });
+
 }  // namespace
 }  // namespace deformable_collision
