@@ -5,6 +5,8 @@ export PATH := /usr/bin:/bin:$(PATH)
 
 WORKSPACE := $(CURDIR)/build/ws
 JOBS ?= 2
+RVIZ ?= 0
+DEMO_ARGS ?=
 
 .PHONY: deps build test demo bench clean
 
@@ -18,7 +20,7 @@ test: build
 	@bash scripts/run_tests "$(WORKSPACE)" "$(JOBS)"
 
 demo: build
-	@"$(WORKSPACE)/devel/lib/deformable_collision/core_demo" three_objects 300
+	@RVIZ=$(RVIZ) bash scripts/run_demo "$(WORKSPACE)" $(DEMO_ARGS)
 
 bench: build
 	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_shape_matching" --benchmark_counters_tabular=true

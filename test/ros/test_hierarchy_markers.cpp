@@ -92,7 +92,7 @@ INSTANTIATE_TEST_SUITE_P(Levels, MarkerLevelTest, ::testing::Values(0, 1, 3, 6, 
 
 TEST(HierarchyMarkers, CollidingSpheresAreHighlightedAndCanBeDrawnAlone) {
   auto scene = squeezedGripper();
-  const int level = 4;
+  const int level = 7;  // fine enough that some spheres are clear of every contact
   std::vector<SceneContact> contacts;
   scene->contactsAt(level, std::nullopt, std::nullopt, contacts);
   ASSERT_FALSE(contacts.empty());

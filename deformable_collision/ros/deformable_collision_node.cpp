@@ -1,0 +1,360 @@
+#include "deformable_collision/ros/deformable_collision_node.h"
+
+#include <boost/bind/bind.hpp>
+#include <boost/make_shared.hpp>
+
+#include <algorithm>
+#include <sstream>
+
+#include "deformable_collision/ros/point_cloud_conversion.h"
+
+namespace deformable_collision {
+namespace {
+
+constexpr double kThrottlePeriodS = 5.0;
+
+NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
+  XmlRpc::XmlRpcValue params;
+  if (!private_handle.getParam(private_handle.getNamespace(), params)) {
+    throw std::invalid_argument("no parameters under " + private_handle.getNamespace() +
+                                ": load a config (see config/demo.yaml)");
+  }
+  return parseNodeConfig(params);
+}
+
+/// The transform as an isometry; std::nullopt unless it is finite with a unit-length
+/// (after normalisation) rotation.
+std::optional<Eigen::Isometry3d> toIsometry(const geometry_msgs::Transform& transform) {
+  const Eigen::Quaterniond rotation(transform.rotation.w, transform.rotation.x,
+                                    transform.rotation.y, transform.rotation.z);
+  const Eigen::Vector3d translation(transform.translation.x, transform.translation.y,
+                                    transform.translation.z);
+  const double norm = rotation.norm();
+  if (!translation.allFinite() || !std::isfinite(norm) || norm < 1e-6) return std::nullopt;
+  Eigen::Isometry3d isometry = Eigen::Isometry3d::Identity();
+  isometry.linear() = rotation.normalized().toRotationMatrix();
+  isometry.translation() = translation;
+  return isometry;
+}
+
+double millisecondsBetween(std::chrono::steady_clock::time_point from,
+                           std::chrono::steady_clock::time_point to) {
+  return std::chrono::duration<double, std::milli>(to - from).count();
+}
+
+}  // namespace
+
+DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
+                                                 ros::NodeHandle private_handle)
+    : node_handle_(node_handle),
+      private_handle_(private_handle),
+      config_(loadConfig(private_handle)),
+      scene_(config_.scene),
+      tf_listener_(tf_buffer_, node_handle) {
+  contacts_publisher_ = private_handle_.advertise<ContactArray>("contacts", 10);
+  hierarchy_publisher_ = private_handle_.advertise<visualization_msgs::MarkerArray>("hierarchy", 1);
+  stats_publisher_ = private_handle_.advertise<Stats>("stats", 10);
+  slots_.resize(config_.objects.size());
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    ObjectSlot& slot = slots_[i];
+    slot.params = config_.objects[i];
+    slot.deformed = private_handle_.advertise<sensor_msgs::PointCloud2>(
+        "deformed/" + slot.params.object.name, 1);
+    slot.subscriber = node_handle_.subscribe<sensor_msgs::PointCloud2>(
+        slot.params.topic, 2,
+        boost::bind(&DeformableCollisionNode::onCloud, this, boost::placeholders::_1, i),
+        ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+  }
+  set_level_service_ =
+      private_handle_.advertiseService("set_level", &DeformableCollisionNode::onSetLevel, this);
+  get_contacts_service_ =
+      private_handle_.advertiseService("get_contacts", &DeformableCollisionNode::onGetContacts, this);
+  timer_ = node_handle_.createTimer(ros::Duration(1.0 / config_.rate_hz),
+                                    &DeformableCollisionNode::onTimer, this);
+  ROS_INFO("deformable_collision: %zu objects, %.1f Hz, dt %.4f s, contact distance %.4f m, "
+           "fixed frame '%s'",
+           slots_.size(), config_.rate_hz, config_.scene.dt_s, config_.scene.contact_distance_m,
+           config_.fixed_frame.c_str());
+}
+
+void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud,
+                                      std::size_t index) {
+  const auto arrival = Clock::now();
+  ObjectSlot& slot = slots_[index];
+  ++stats_message_.clouds_received;
+  const bool first = !slot.index;
+  if (!first && slot.params.on_cloud == OnCloud::kIgnore) return;
+
+  const std::string& topic = slot.subscriber.getTopic();
+  const std::string& name = slot.params.object.name;
+  const auto reject = [&](const std::string& problem) {
+    ++stats_message_.clouds_rejected;
+    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped, object '%s' unchanged: %s",
+                       topic.c_str(), name.c_str(), problem.c_str());
+  };
+
+  const bool tracking = !first && slot.params.on_cloud == OnCloud::kTrack;
+  const CloudReadResult read =
+      readCloudPoints(*cloud, tracking ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
+                      config_.max_points_per_object, cloud_points_);
+  if (!read.ok()) return reject(read.error);
+  if (cloud_points_.empty()) {
+    return reject(read.non_finite > 0 ? "every point is non-finite" : "the cloud is empty");
+  }
+  const bool kinematic = slot.params.object.kind == ObjectKind::kKinematic;
+  const std::string& target_frame = kinematic ? slot.params.follow_frame : config_.fixed_frame;
+  if (!transformPoints(target_frame, *cloud, topic, cloud_points_)) {
+    ++stats_message_.clouds_rejected;
+    return;
+  }
+  try {
+    applyCloud(slot, cloud_points_, first);
+  } catch (const std::exception& e) {
+    return reject(e.what());
+  }
+  stats_message_.non_finite_points += read.non_finite;
+  if (!slot.pending_since) slot.pending_since = arrival;
+}
+
+void DeformableCollisionNode::applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points,
+                                         bool first) {
+  std::optional<Eigen::Isometry3d> pose;
+  if (slot.params.object.kind == ObjectKind::kKinematic) {
+    // A kinematic rest shape lives in its frame: without that frame's pose it has no place.
+    const geometry_msgs::TransformStamped stamped =
+        tf_buffer_.lookupTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0));
+    pose = toIsometry(stamped.transform);
+    if (!pose) throw std::invalid_argument("the pose of " + slot.params.follow_frame + " is not finite");
+  }
+  if (first) {
+    slot.index = scene_.addObject(slot.params.object, points);
+    ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
+             points.size(), slot.subscriber.getTopic().c_str(),
+             toString(slot.params.object.kind));
+  } else if (slot.params.on_cloud == OnCloud::kReset) {
+    scene_.resetRestShape(*slot.index, points);
+  } else {
+    scene_.observe(*slot.index, points);
+  }
+  if (pose) {
+    scene_.setPose(*slot.index, *pose);
+    slot.last_pose = *pose;
+  }
+}
+
+bool DeformableCollisionNode::transformPoints(const std::string& target_frame,
+                                              const sensor_msgs::PointCloud2& cloud,
+                                              const std::string& topic,
+                                              std::vector<Eigen::Vector3d>& points) {
+  if (cloud.header.frame_id.empty()) {
+    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: header.frame_id is empty",
+                       topic.c_str());
+    return false;
+  }
+  if (cloud.header.frame_id == target_frame) return true;
+  std::optional<Eigen::Isometry3d> transform;
+  try {
+    transform = toIsometry(
+        tf_buffer_.lookupTransform(target_frame, cloud.header.frame_id, cloud.header.stamp).transform);
+  } catch (const tf2::TransformException& e) {
+    ROS_WARN_THROTTLE(kThrottlePeriodS, "cloud on %s dropped, last state kept: no transform from "
+                      "'%s' to '%s': %s",
+                      topic.c_str(), cloud.header.frame_id.c_str(), target_frame.c_str(), e.what());
+    return false;
+  }
+  if (!transform) {
+    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: the transform from '%s' to '%s' "
+                       "is not finite", topic.c_str(), cloud.header.frame_id.c_str(),
+                       target_frame.c_str());
+    return false;
+  }
+  for (auto& p : points) p = *transform * p;
+  return true;
+}
+
+void DeformableCollisionNode::followFrames() {
+  for (ObjectSlot& slot : slots_) {
+    if (!slot.index || slot.params.object.kind != ObjectKind::kKinematic) continue;
+    std::optional<Eigen::Isometry3d> pose;
+    try {
+      pose = toIsometry(
+          tf_buffer_.lookupTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))
+              .transform);
+    } catch (const tf2::TransformException& e) {
+      ROS_WARN_THROTTLE(kThrottlePeriodS, "object '%s' keeps its last pose: %s",
+                        slot.params.object.name.c_str(), e.what());
+      continue;
+    }
+    // An unchanged pose costs nothing: the object's points and spheres stay as they are.
+    if (!pose || (slot.last_pose && pose->matrix() == slot.last_pose->matrix())) continue;
+    scene_.setPose(*slot.index, *pose);
+    slot.last_pose = *pose;
+  }
+}
+
+void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
+  const auto start = Clock::now();
+  followFrames();
+  scene_.cycle();
+  const auto cycled = Clock::now();
+  const CycleStats& cycle = scene_.stats();
+  std_msgs::Header header;
+  header.stamp = ros::Time::now();
+  header.frame_id = config_.fixed_frame;
+
+  if (contacts_publisher_.getNumSubscribers() > 0) {
+    auto message = boost::make_shared<ContactArray>();
+    message->header = header;
+    fillContactArray(scene_.contacts(), cycle.level, *message);
+    contacts_publisher_.publish(message);
+  }
+  const auto contacts_published = Clock::now();
+  std::optional<Clock::time_point> oldest_input;
+  for (ObjectSlot& slot : slots_) {
+    if (slot.pending_since && (!oldest_input || *slot.pending_since < *oldest_input)) {
+      oldest_input = slot.pending_since;
+    }
+    slot.pending_since.reset();
+  }
+
+  if (hierarchy_publisher_.getNumSubscribers() > 0 && scene_.objectCount() > 0) {
+    auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
+    markers_.build(scene_, cycle.level, scene_.contacts(), config_.markers_colliding_only, header,
+                   *markers);
+    hierarchy_publisher_.publish(markers);
+  }
+  std::size_t points = 0;
+  for (const ObjectSlot& slot : slots_) {
+    if (!slot.index) continue;
+    const auto& positions = scene_.body(*slot.index).positions();
+    points += positions.size();
+    if (slot.deformed.getNumSubscribers() == 0) continue;
+    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+    cloud->header = header;
+    writeCloudPoints(positions, *cloud);
+    slot.deformed.publish(cloud);
+  }
+  const auto published = Clock::now();
+
+  Stats& stats = stats_message_;
+  ++stats.cycles;
+  const double cycle_ms = millisecondsBetween(start, published);
+  if (cycle_ms > 1000.0 / config_.rate_hz) ++stats.overruns;
+  if (stats_publisher_.getNumSubscribers() == 0) return;
+  stats.header = header;
+  stats.level = static_cast<std::uint8_t>(cycle.level);
+  stats.max_level = static_cast<std::uint8_t>(scene_.maxLevel());
+  stats.shape_matching_ms = cycle.shape_matching_ms;
+  stats.detection_ms = cycle.detection_ms;
+  stats.response_ms = cycle.response_ms;
+  stats.publish_ms = millisecondsBetween(cycled, published);
+  stats.cycle_ms = cycle_ms;
+  stats.input_latency_ms = oldest_input ? millisecondsBetween(*oldest_input, contacts_published) : 0.0;
+  stats.objects = static_cast<std::uint32_t>(scene_.objectCount());
+  stats.points = static_cast<std::uint32_t>(points);
+  stats.objects_moved = static_cast<std::uint32_t>(cycle.objects_moved);
+  stats.spheres_updated = static_cast<std::uint32_t>(cycle.spheres_updated);
+  stats.node_pairs_tested = static_cast<std::uint32_t>(cycle.node_pairs_tested);
+  stats.point_tests = static_cast<std::uint32_t>(cycle.point_tests);
+  stats.contacts = static_cast<std::uint32_t>(cycle.contacts);
+  stats_publisher_.publish(stats);
+}
+
+void DeformableCollisionNode::fillContactArray(const std::vector<SceneContact>& contacts, int level,
+                                               ContactArray& message) const {
+  message.level = static_cast<std::uint8_t>(level);
+  message.contacts.resize(contacts.size());
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    const SceneContact& from = contacts[k];
+    Contact& to = message.contacts[k];
+    to.object_a = scene_.objectConfig(from.object_a).name;
+    to.object_b = scene_.objectConfig(from.object_b).name;
+    to.sphere_a = from.contact.node_a;
+    to.sphere_b = from.contact.node_b;
+    to.level = static_cast<std::uint8_t>(from.contact.level);
+    to.position.x = from.contact.position.x();
+    to.position.y = from.contact.position.y();
+    to.position.z = from.contact.position.z();
+    to.normal.x = from.contact.normal.x();
+    to.normal.y = from.contact.normal.y();
+    to.normal.z = from.contact.normal.z();
+    to.depth = from.contact.depth_m;
+  }
+}
+
+bool DeformableCollisionNode::onSetLevel(SetLevel::Request& request, SetLevel::Response& response) {
+  response.max_level = static_cast<std::uint8_t>(scene_.maxLevel());
+  response.level = static_cast<std::uint8_t>(scene_.level());
+  if (scene_.objectCount() == 0) {
+    response.success = false;
+    response.message = "no object has a rest shape yet, so there are no levels: publish clouds first";
+    return true;
+  }
+  if (request.level > scene_.maxLevel()) {
+    response.success = false;
+    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
+                       std::to_string(scene_.maxLevel()) + "] (" +
+                       std::to_string(scene_.maxLevel()) + " is the leaf level)";
+    return true;
+  }
+  scene_.setLevel(request.level);
+  response.success = true;
+  response.level = static_cast<std::uint8_t>(scene_.level());
+  response.message = "level " + std::to_string(scene_.level()) + " of [0, " +
+                     std::to_string(scene_.maxLevel()) + "]";
+  return true;
+}
+
+bool DeformableCollisionNode::resolveObject(const std::string& name,
+                                            std::optional<std::size_t>& index,
+                                            bool& has_shape, std::string& problem) const {
+  index.reset();
+  has_shape = true;
+  if (name.empty()) return true;
+  for (const ObjectSlot& slot : slots_) {
+    if (slot.params.object.name != name) continue;
+    index = slot.index;
+    has_shape = slot.index.has_value();
+    return true;
+  }
+  std::ostringstream known;
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    known << (i ? ", " : "") << slots_[i].params.object.name;
+  }
+  problem = "unknown object '" + name + "'; the objects are: " + known.str();
+  return false;
+}
+
+bool DeformableCollisionNode::onGetContacts(GetContacts::Request& request,
+                                            GetContacts::Response& response) {
+  response.contacts.header.stamp = ros::Time::now();
+  response.contacts.header.frame_id = config_.fixed_frame;
+  response.success = false;
+  std::optional<std::size_t> a, b;
+  bool a_has_shape = true, b_has_shape = true;
+  if (!resolveObject(request.object_a, a, a_has_shape, response.message) ||
+      !resolveObject(request.object_b, b, b_has_shape, response.message)) {
+    return true;
+  }
+  const int max_level = scene_.maxLevel();
+  if (request.level < -1 || request.level > max_level) {
+    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
+                       std::to_string(max_level) + "] (-1: the current level)";
+    return true;
+  }
+  const int level = request.level == -1 ? scene_.level() : request.level;
+  response.success = true;
+  response.contacts.level = static_cast<std::uint8_t>(level);
+  if (!a_has_shape || !b_has_shape) {
+    response.message = "object '" + (a_has_shape ? request.object_b : request.object_a) +
+                       "' has had no valid cloud yet: no contacts";
+    return true;
+  }
+  scene_.contactsAt(level, a, b, query_contacts_);
+  fillContactArray(query_contacts_, level, response.contacts);
+  response.message = std::to_string(query_contacts_.size()) + " contacts at level " +
+                     std::to_string(level);
+  return true;
+}
+
+}  // namespace deformable_collision

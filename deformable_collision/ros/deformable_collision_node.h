@@ -1,0 +1,82 @@
+#pragma once
+
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "deformable_collision/ContactArray.h"
+#include "deformable_collision/Stats.h"
+#include "deformable_collision/GetContacts.h"
+#include "deformable_collision/SetLevel.h"
+#include "deformable_collision/core/scene.h"
+#include "deformable_collision/ros/hierarchy_markers.h"
+#include "deformable_collision/ros/node_config.h"
+
+namespace deformable_collision {
+
+/// The ROS side of the package: reads the configuration, turns clouds into scene objects,
+/// runs the scene's cycle on a timer and publishes what is subscribed. All callbacks run
+/// on the node handles' queue, one at a time (the nodelet's single-threaded handles).
+class DeformableCollisionNode {
+ public:
+  /// Loads and validates every parameter before subscribing to anything.
+  /// @throw std::invalid_argument naming the bad parameter.
+  DeformableCollisionNode(ros::NodeHandle node_handle, ros::NodeHandle private_handle);
+
+ private:
+  using Clock = std::chrono::steady_clock;
+
+  struct ObjectSlot {
+    ObjectParams params;
+    std::optional<std::size_t> index;  ///< In the scene, once a cloud set its rest shape.
+    ros::Subscriber subscriber;
+    ros::Publisher deformed;
+    std::optional<Clock::time_point> pending_since;  ///< Oldest cloud not yet cycled.
+    std::optional<Eigen::Isometry3d> last_pose;      ///< Kinematic objects.
+  };
+
+  void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
+  void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
+  bool transformPoints(const std::string& target_frame, const sensor_msgs::PointCloud2& cloud,
+                       const std::string& topic, std::vector<Eigen::Vector3d>& points);
+  void followFrames();
+  void onTimer(const ros::TimerEvent& event);
+  void fillContactArray(const std::vector<SceneContact>& contacts, int level,
+                        ContactArray& message) const;
+  bool onSetLevel(SetLevel::Request& request, SetLevel::Response& response);
+  bool onGetContacts(GetContacts::Request& request, GetContacts::Response& response);
+  /// Scene index of a named object (std::nullopt for "any", the empty name) and whether it
+  /// has a rest shape yet; false, with `problem` said, if no object has that name.
+  bool resolveObject(const std::string& name, std::optional<std::size_t>& index,
+                     bool& has_shape, std::string& problem) const;
+
+  ros::NodeHandle node_handle_;
+  ros::NodeHandle private_handle_;
+  NodeConfig config_;
+  Scene scene_;
+  std::vector<ObjectSlot> slots_;
+  tf2_ros::Buffer tf_buffer_;
+  tf2_ros::TransformListener tf_listener_;
+
+  ros::Publisher contacts_publisher_;
+  ros::Publisher hierarchy_publisher_;
+  ros::Publisher stats_publisher_;
+  ros::ServiceServer set_level_service_;
+  ros::ServiceServer get_contacts_service_;
+  ros::Timer timer_;
+
+  HierarchyMarkers markers_;
+  std::vector<Eigen::Vector3d> cloud_points_;
+  std::vector<SceneContact> query_contacts_;
+  Stats stats_message_;
+};
+
+}  // namespace deformable_collision

@@ -1,0 +1,106 @@
+// Publishes a built-in scene (deformable_collision/core/demo_scenes.h) as one PointCloud2
+// per object on <object>/points, and the frames of its kinematic objects on tf: the input
+// of the demo and of the node's tests. With ~simulate the scene is stepped and every cloud
+// shows the current points (for objects the node tracks); otherwise the rest shapes.
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include <boost/make_shared.hpp>
+
+#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/ros/point_cloud_conversion.h"
+
+namespace {
+
+using deformable_collision::DemoScene;
+
+geometry_msgs::TransformStamped toTransform(const Eigen::Isometry3d& pose, const ros::Time& stamp,
+                                            const std::string& parent, const std::string& child) {
+  geometry_msgs::TransformStamped transform;
+  transform.header.stamp = stamp;
+  transform.header.frame_id = parent;
+  transform.child_frame_id = child;
+  transform.transform.translation.x = pose.translation().x();
+  transform.transform.translation.y = pose.translation().y();
+  transform.transform.translation.z = pose.translation().z();
+  const Eigen::Quaterniond rotation(pose.linear());
+  transform.transform.rotation.x = rotation.x();
+  transform.transform.rotation.y = rotation.y();
+  transform.transform.rotation.z = rotation.z();
+  transform.transform.rotation.w = rotation.w();
+  return transform;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "scene_publisher");
+  ros::NodeHandle node_handle;
+  ros::NodeHandle private_handle("~");
+  const std::string scene_name = private_handle.param<std::string>("scene", "gripper");
+  const int points = private_handle.param("points", 0);
+  const double rate_hz = private_handle.param("rate_hz", 10.0);
+  const bool simulate = private_handle.param("simulate", false);
+  const std::string fixed_frame = private_handle.param<std::string>("fixed_frame", "world");
+
+  const auto scene_kind = deformable_collision::parseDemoScene(scene_name);
+  if (!scene_kind) {
+    ROS_FATAL("~scene = '%s' must be two_objects, pile, three_objects or gripper", scene_name.c_str());
+    return 1;
+  }
+  if (!(rate_hz >= 10.0 && rate_hz <= 1000.0) || points < 0) {
+    ROS_FATAL("~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s) and "
+              "~points = %d >= 0", rate_hz, points);
+    return 1;
+  }
+  deformable_collision::SceneConfig config;
+  config.dt_s = 1.0 / rate_hz;
+  std::unique_ptr<deformable_collision::Scene> scene;
+  try {
+    scene = deformable_collision::makeDemoScene(*scene_kind, static_cast<std::size_t>(points), config);
+  } catch (const std::exception& e) {
+    ROS_FATAL("cannot build scene '%s': %s", scene_name.c_str(), e.what());
+    return 1;
+  }
+
+  std::vector<ros::Publisher> publishers;
+  for (std::size_t i = 0; i < scene->objectCount(); ++i) {
+    publishers.push_back(
+        node_handle.advertise<sensor_msgs::PointCloud2>(scene->objectConfig(i).name + "/points", 2));
+  }
+  tf2_ros::TransformBroadcaster broadcaster;
+  ROS_INFO("scene_publisher: scene '%s' with %zu objects at %.1f Hz%s", scene_name.c_str(),
+           scene->objectCount(), rate_hz, simulate ? ", simulated" : "");
+
+  const ros::Time start = ros::Time::now();
+  ros::Rate rate(rate_hz);
+  while (ros::ok()) {
+    const ros::Time now = ros::Time::now();
+    const double time_s = (now - start).toSec();
+    if (simulate) {
+      deformable_collision::driveDemoScene(*scene_kind, *scene, time_s);
+      scene->cycle();
+    }
+    for (std::size_t i = 0; i < scene->objectCount(); ++i) {
+      const auto& object = scene->objectConfig(i);
+      const bool kinematic = object.kind == deformable_collision::ObjectKind::kKinematic;
+      if (kinematic) {
+        // A kinematic object is its rest shape in its own frame, moved by tf.
+        const auto pose = deformable_collision::demoKinematicPose(*scene_kind, object.name, time_s);
+        broadcaster.sendTransform(toTransform(pose.value_or(Eigen::Isometry3d::Identity()), now,
+                                              fixed_frame, object.name));
+      }
+      if (publishers[i].getNumSubscribers() == 0) continue;
+      auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+      cloud->header.stamp = now;
+      cloud->header.frame_id = kinematic ? object.name : fixed_frame;
+      deformable_collision::writeCloudPoints(
+          kinematic ? scene->body(i).restPositions() : scene->body(i).positions(), *cloud);
+      publishers[i].publish(cloud);
+    }
+    ros::spinOnce();
+    rate.sleep();
+  }
+  return 0;
+}

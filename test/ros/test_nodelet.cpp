@@ -1,0 +1,404 @@
+// Wiring of the nodelet (rostest nodelet.test): clouds in, contacts, markers, deformed
+// clouds and stats out, both services, malformed input, tf, and a refused configuration.
+// Every wait is on an event with a timeout.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+
+#include <deque>
+#include <functional>
+#include <map>
+
+#include "deformable_collision/ContactArray.h"
+#include "deformable_collision/GetContacts.h"
+#include "deformable_collision/SetLevel.h"
+#include "deformable_collision/Stats.h"
+#include "deformable_collision/ros/deformable_collision_node.h"
+#include "deformable_collision/ros/point_cloud_conversion.h"
+
+namespace deformable_collision {
+namespace {
+
+using Points = std::vector<Eigen::Vector3d>;
+using sensor_msgs::PointCloud2;
+
+const std::string kNode = "/deformable_collision";
+const std::vector<std::string> kObjects = {"floor", "probe", "jaw", "ball"};
+constexpr double kTimeoutS = 30.0;
+
+Points grid(int nx, int ny, int nz, double spacing, const Eigen::Vector3d& center) {
+  Points points;
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      for (int k = 0; k < nz; ++k) {
+        points.push_back(center + spacing * Eigen::Vector3d(i - (nx - 1) / 2.0, j - (ny - 1) / 2.0,
+                                                            k - (nz - 1) / 2.0));
+      }
+    }
+  }
+  return points;
+}
+
+/// A 0.6 m floor of two layers, top at z = 0.
+Points floorPoints() { return grid(31, 31, 2, 0.02, {0.0, 0.0, -0.01}); }
+/// A 0.1 m cube whose bottom is 0.01 m above the floor: closer than the contact distance.
+Points probePoints() { return grid(6, 6, 6, 0.02, {-0.15, 0.0, 0.06}); }
+/// The jaw in its own frame, test_jaw, which the test puts at (0.5, 0, 0.1).
+Points jawPoints() { return grid(5, 5, 5, 0.02, Eigen::Vector3d::Zero()); }
+const Eigen::Vector3d kJawOrigin(0.5, 0.0, 0.1);
+/// A floating ball, far from everything (no gravity in the test's config).
+Points ballPoints() {
+  Points ball;
+  for (const auto& p : grid(7, 7, 7, 0.02, {0.0, 0.0, 0.0})) {
+    if (p.norm() <= 0.061) ball.push_back(p + Eigen::Vector3d(0.1, 0.1, 0.4));
+  }
+  return ball;
+}
+
+PointCloud2 cloudOf(const Points& points, const std::string& frame) {
+  PointCloud2 cloud;
+  writeCloudPoints(points, cloud);
+  cloud.header.frame_id = frame;
+  cloud.header.stamp = ros::Time::now();
+  return cloud;
+}
+
+bool waitFor(const std::function<bool()>& done, double timeout_s = kTimeoutS) {
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::ok() && ros::WallTime::now() < deadline) {
+    ros::spinOnce();
+    if (done()) return true;
+    ros::WallDuration(0.002).sleep();
+  }
+  return done();
+}
+
+class NodeletTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    geometry_msgs::TransformStamped jaw_frame;
+    jaw_frame.header.stamp = ros::Time::now();
+    jaw_frame.header.frame_id = "world";
+    jaw_frame.child_frame_id = "test_jaw";
+    jaw_frame.transform.translation.x = kJawOrigin.x();
+    jaw_frame.transform.translation.y = kJawOrigin.y();
+    jaw_frame.transform.translation.z = kJawOrigin.z();
+    jaw_frame.transform.rotation.w = 1.0;
+    tf_broadcaster_.sendTransform(jaw_frame);
+
+    for (const auto& name : kObjects) {
+      inputs_[name] = handle_.advertise<PointCloud2>("/test/" + name, 10, name != "probe");
+      deformed_subscribers_.push_back(handle_.subscribe<PointCloud2>(
+          kNode + "/deformed/" + name, 10,
+          boost::function<void(const PointCloud2::ConstPtr&)>(
+              [this, name](const PointCloud2::ConstPtr& cloud) { deformed_[name].push_back(cloud); })));
+    }
+    contacts_subscriber_ = handle_.subscribe<ContactArray>(
+        kNode + "/contacts", 10, boost::function<void(const ContactArray::ConstPtr&)>(
+                                     [this](const ContactArray::ConstPtr& m) { contacts_ = m; }));
+    stats_subscriber_ = handle_.subscribe<Stats>(
+        kNode + "/stats", 10,
+        boost::function<void(const Stats::ConstPtr&)>([this](const Stats::ConstPtr& m) { stats_ = m; }));
+    ASSERT_TRUE(waitFor([this] {
+      for (const auto& [name, publisher] : inputs_) {
+        if (publisher.getNumSubscribers() == 0) return false;
+      }
+      return contacts_subscriber_.getNumPublishers() > 0 && stats_subscriber_.getNumPublishers() > 0;
+    })) << "the nodelet did not connect";
+    inputs_["floor"].publish(cloudOf(floorPoints(), "world"));
+    inputs_["jaw"].publish(cloudOf(jawPoints(), "test_jaw"));
+    inputs_["ball"].publish(cloudOf(ballPoints(), "world"));
+    // The probe is tracked: every test starts from it touching the floor.
+    inputs_["probe"].publish(cloudOf(probePoints(), "world"));
+    ASSERT_TRUE(waitFor([this] {
+      return stats_ && stats_->objects == kObjects.size() && probeAt(probePoints());
+    })) << "the objects did not arrive";
+    ASSERT_TRUE(ros::service::waitForService(kNode + "/set_level", ros::Duration(kTimeoutS)));
+    ASSERT_TRUE(ros::service::waitForService(kNode + "/get_contacts", ros::Duration(kTimeoutS)));
+    SetLevel finest;
+    finest.request.level = 255;
+    ASSERT_TRUE(ros::service::call(kNode + "/set_level", finest));
+    max_level_ = finest.response.max_level;
+    setLevel(max_level_);
+  }
+
+  /// Whether the last ~deformed/probe holds `points` (float32 as published).
+  bool probeAt(const Points& points) {
+    auto& clouds = deformed_["probe"];
+    if (clouds.empty()) return false;
+    Points published;
+    if (!readCloudPoints(*clouds.back(), NonFinitePoints::kKeepAsNaN, 1 << 20, published).ok() ||
+        published.size() != points.size()) {
+      return false;
+    }
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      if ((published[i] - points[i]).norm() > 1e-5) return false;
+    }
+    return true;
+  }
+
+  void setLevel(int level) {
+    SetLevel call;
+    call.request.level = static_cast<std::uint8_t>(level);
+    ASSERT_TRUE(ros::service::call(kNode + "/set_level", call));
+    ASSERT_TRUE(call.response.success) << call.response.message;
+    ASSERT_EQ(call.response.level, level);
+    // Contacts of a cycle at the new level.
+    contacts_.reset();
+    ASSERT_TRUE(waitFor([&] { return contacts_ && contacts_->level == level; }));
+  }
+
+  GetContacts getContacts(const std::string& a, const std::string& b, int level) {
+    GetContacts call;
+    call.request.object_a = a;
+    call.request.object_b = b;
+    call.request.level = static_cast<std::int16_t>(level);
+    EXPECT_TRUE(ros::service::call(kNode + "/get_contacts", call));
+    return call;
+  }
+
+  ros::NodeHandle handle_;
+  tf2_ros::StaticTransformBroadcaster tf_broadcaster_;
+  std::map<std::string, ros::Publisher> inputs_;
+  std::vector<ros::Subscriber> deformed_subscribers_;
+  std::map<std::string, std::deque<PointCloud2::ConstPtr>> deformed_;
+  ros::Subscriber contacts_subscriber_;
+  ros::Subscriber stats_subscriber_;
+  ContactArray::ConstPtr contacts_;
+  Stats::ConstPtr stats_;
+  int max_level_ = 0;
+};
+
+TEST_F(NodeletTest, PublishesContactsBetweenTouchingObjects) {
+  ASSERT_TRUE(waitFor([this] { return contacts_ && !contacts_->contacts.empty(); }));
+  EXPECT_EQ(contacts_->header.frame_id, "world");
+  EXPECT_EQ(contacts_->level, max_level_);
+  for (const Contact& c : contacts_->contacts) {
+    const std::set<std::string> pair{c.object_a, c.object_b};
+    EXPECT_EQ(pair, (std::set<std::string>{"floor", "probe"})) << "only the probe touches";
+    EXPECT_GT(c.depth, 0.0);
+    EXPECT_NEAR(std::hypot(c.normal.x, c.normal.y, c.normal.z), 1.0, 1e-9);
+    // From b to a: up when a is the probe, which lies above the floor.
+    EXPECT_GT((c.object_a == "probe" ? 1.0 : -1.0) * c.normal.z, 0.5);
+    EXPECT_NEAR(c.position.z, 0.005, 0.011);
+  }
+  EXPECT_GT(stats_->points, 0u);
+  EXPECT_EQ(stats_->max_level, max_level_);
+}
+
+TEST_F(NodeletTest, SetLevelAnswersGoodAndBadRequests) {
+  setLevel(1);
+  SetLevel bad;
+  bad.request.level = static_cast<std::uint8_t>(max_level_ + 1);
+  ASSERT_TRUE(ros::service::call(kNode + "/set_level", bad));
+  EXPECT_FALSE(bad.response.success);
+  EXPECT_NE(bad.response.message.find("outside [0, " + std::to_string(max_level_) + "]"),
+            std::string::npos) << bad.response.message;
+  EXPECT_EQ(bad.response.level, 1) << "a refused request leaves the level alone";
+  EXPECT_EQ(bad.response.max_level, max_level_);
+  contacts_.reset();
+  ASSERT_TRUE(waitFor([this] { return contacts_ != nullptr; }));
+  EXPECT_EQ(contacts_->level, 1);
+}
+
+TEST_F(NodeletTest, GetContactsAnswersAtAnyLevelAndLeavesTheRunningOneAlone) {
+  const GetContacts current = getContacts("probe", "floor", -1);
+  ASSERT_TRUE(current.response.success) << current.response.message;
+  EXPECT_EQ(current.response.contacts.level, max_level_);
+  ASSERT_FALSE(current.response.contacts.contacts.empty());
+  for (const Contact& c : current.response.contacts.contacts) {
+    EXPECT_EQ(c.object_a, "probe");  // in the order asked for
+    EXPECT_EQ(c.object_b, "floor");
+  }
+  // At the roots the floor's wide sphere also reaches the jaw's and the ball's.
+  const GetContacts roots = getContacts("floor", "", 0);
+  ASSERT_TRUE(roots.response.success) << roots.response.message;
+  std::set<std::string> partners;
+  for (const Contact& c : roots.response.contacts.contacts) {
+    EXPECT_EQ(c.object_a, "floor");
+    EXPECT_EQ(c.sphere_a, 0u);
+    EXPECT_EQ(c.sphere_b, 0u);
+    EXPECT_EQ(c.level, 0);
+    partners.insert(c.object_b);
+  }
+  EXPECT_EQ(partners.size(), roots.response.contacts.contacts.size()) << "one contact per pair";
+  EXPECT_EQ(partners.count("probe"), 1u);
+  const GetContacts untouched = getContacts("ball", "", -1);
+  EXPECT_TRUE(untouched.response.success);
+  EXPECT_TRUE(untouched.response.contacts.contacts.empty());
+
+  contacts_.reset();
+  ASSERT_TRUE(waitFor([this] { return contacts_ != nullptr; }));
+  EXPECT_EQ(contacts_->level, max_level_) << "a query at level 0 changed the running level";
+
+  struct BadRequest {
+    std::string a, b;
+    int level;
+    std::string expected;
+  };
+  for (const BadRequest& request : {BadRequest{"nothing", "", -1, "unknown object 'nothing'"},
+                                    BadRequest{"probe", "Floor", -1, "unknown object 'Floor'"},
+                                    BadRequest{"", "", max_level_ + 1, "outside"},
+                                    BadRequest{"", "", -2, "level -2"}}) {
+    const GetContacts answer = getContacts(request.a, request.b, request.level);
+    EXPECT_FALSE(answer.response.success) << request.expected;
+    EXPECT_NE(answer.response.message.find(request.expected), std::string::npos)
+        << answer.response.message;
+  }
+  EXPECT_TRUE(getContacts("", "", -1).response.success) << "the node goes on answering";
+}
+
+TEST_F(NodeletTest, MalformedCloudsLeaveTheNodeRunningAndItsStateIntact) {
+  ASSERT_TRUE(waitFor([this] { return stats_ != nullptr; }));
+  const auto rejected_before = stats_->clouds_rejected;
+  const auto non_finite_before = stats_->non_finite_points;
+  const PointCloud2 good = cloudOf(probePoints(), "world");
+
+  std::vector<PointCloud2> malformed;
+  PointCloud2 no_z = good;
+  no_z.fields.pop_back();
+  malformed.push_back(no_z);
+  PointCloud2 small_step = good;
+  small_step.point_step = 8;
+  malformed.push_back(small_step);
+  PointCloud2 short_data = good;
+  short_data.data.resize(short_data.data.size() / 2);
+  malformed.push_back(short_data);
+  PointCloud2 empty = good;
+  empty.width = 0;
+  empty.row_step = 0;
+  empty.data.clear();
+  malformed.push_back(empty);
+  const Points probe = probePoints();
+  malformed.push_back(cloudOf(Points(probe.begin(), probe.begin() + 10), "world"));
+  PointCloud2 no_frame = good;
+  no_frame.header.frame_id.clear();
+  malformed.push_back(no_frame);
+  // One at a time: the node keeps only the newest clouds of a topic.
+  for (std::size_t k = 0; k < malformed.size(); ++k) {
+    inputs_["probe"].publish(malformed[k]);
+    ASSERT_TRUE(waitFor([&] { return stats_->clouds_rejected == rejected_before + k + 1; }))
+        << "malformed cloud " << k << " was not rejected";
+  }
+
+  // NaN points are unobserved for a tracked object: the others still register.
+  Points with_nan = probePoints();
+  for (std::size_t i = 0; i < with_nan.size(); i += 7) with_nan[i].x() = std::nan("");
+  inputs_["probe"].publish(cloudOf(with_nan, "world"));
+  ASSERT_TRUE(waitFor([&] { return stats_->non_finite_points > non_finite_before; }));
+  EXPECT_EQ(stats_->clouds_rejected, rejected_before + malformed.size());
+
+  deformed_["probe"].clear();
+  ASSERT_TRUE(waitFor([this] { return !deformed_["probe"].empty(); }));
+  EXPECT_TRUE(probeAt(probePoints())) << "the probe moved";
+  const GetContacts answer = getContacts("probe", "floor", -1);
+  EXPECT_TRUE(answer.response.success);
+  EXPECT_FALSE(answer.response.contacts.contacts.empty());
+}
+
+TEST_F(NodeletTest, TrackedCloudsMoveTheObjectAndItsContacts) {
+  Points lifted = probePoints();
+  for (auto& p : lifted) p.z() += 0.2;
+  inputs_["probe"].publish(cloudOf(lifted, "world"));
+  ASSERT_TRUE(waitFor([&] { return probeAt(lifted); }));
+  EXPECT_TRUE(getContacts("probe", "", -1).response.contacts.contacts.empty());
+}
+
+TEST_F(NodeletTest, KinematicObjectFollowsItsFrame) {
+  ASSERT_TRUE(waitFor([this] { return !deformed_["jaw"].empty(); }));
+  Points published;
+  ASSERT_TRUE(readCloudPoints(*deformed_["jaw"].back(), NonFinitePoints::kDrop, 1 << 20, published).ok());
+  const Points local = jawPoints();
+  ASSERT_EQ(published.size(), local.size());
+  for (std::size_t i = 0; i < local.size(); ++i) {
+    EXPECT_LT((published[i] - (local[i] + kJawOrigin)).norm(), 1e-5);
+  }
+}
+
+/// Spheres of one object as a client decodes ~hierarchy: centre = point, radius = scale / 2.
+using DecodedSpheres = std::vector<std::pair<Eigen::Vector3d, double>>;
+
+class MarkerTest : public NodeletTest, public ::testing::WithParamInterface<int> {};
+
+TEST_P(MarkerTest, EveryDeformedPointLiesInASphereOfThePublishedLevel) {
+  const int level = std::min(GetParam(), max_level_);
+  setLevel(level);
+  std::deque<visualization_msgs::MarkerArray::ConstPtr> arrays;
+  ros::Subscriber markers = handle_.subscribe<visualization_msgs::MarkerArray>(
+      kNode + "/hierarchy", 10,
+      boost::function<void(const visualization_msgs::MarkerArray::ConstPtr&)>(
+          [&](const visualization_msgs::MarkerArray::ConstPtr& m) { arrays.push_back(m); }));
+  for (auto& [name, clouds] : deformed_) clouds.clear();
+  // Markers and clouds of the same cycle carry the same stamp.
+  visualization_msgs::MarkerArray::ConstPtr array;
+  std::map<std::string, PointCloud2::ConstPtr> clouds;
+  ASSERT_TRUE(waitFor([&] {
+    for (auto it = arrays.rbegin(); it != arrays.rend(); ++it) {
+      if ((*it)->markers.size() < 2) continue;
+      const ros::Time stamp = (*it)->markers[1].header.stamp;
+      clouds.clear();
+      for (const auto& name : kObjects) {
+        for (const auto& cloud : deformed_[name]) {
+          if (cloud->header.stamp == stamp) clouds[name] = cloud;
+        }
+      }
+      if (clouds.size() == kObjects.size()) {
+        array = *it;
+        return true;
+      }
+    }
+    return false;
+  })) << "no markers and clouds of one cycle";
+
+  std::map<std::string, DecodedSpheres> spheres;
+  std::size_t highlighted = 0;
+  for (const auto& marker : array->markers) {
+    if (marker.action != visualization_msgs::Marker::ADD) continue;
+    EXPECT_EQ(marker.type, visualization_msgs::Marker::SPHERE_LIST);
+    for (std::size_t k = 0; k < marker.points.size(); ++k) {
+      const auto& p = marker.points[k];
+      spheres[marker.ns].emplace_back(Eigen::Vector3d(p.x, p.y, p.z), marker.scale.x / 2);
+      highlighted += marker.colors[k].r == 1.0f && marker.colors[k].g < 0.2f;
+    }
+  }
+  EXPECT_GT(highlighted, 0u) << "the probe and the floor touch";
+  for (const auto& name : kObjects) {
+    Points points;
+    ASSERT_TRUE(readCloudPoints(*clouds[name], NonFinitePoints::kDrop, 1 << 20, points).ok());
+    ASSERT_FALSE(points.empty());
+    const DecodedSpheres& drawn = spheres[name];
+    ASSERT_FALSE(drawn.empty()) << name;
+    for (const auto& point : points) {
+      const bool inside = std::any_of(drawn.begin(), drawn.end(), [&](const auto& sphere) {
+        return (point - sphere.first).norm() <= sphere.second;
+      });
+      ASSERT_TRUE(inside) << name << " at level " << level;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Levels, MarkerTest, ::testing::Values(0, 2, 255));
+
+TEST(NodeletConfiguration, RefusesABadParameterNamingIt) {
+  ros::NodeHandle bad("/refused_node");
+  bad.setParam("rate_hz", -5.0);
+  bad.setParam("objects", std::vector<std::string>{});
+  try {
+    DeformableCollisionNode node(ros::NodeHandle(), bad);
+    FAIL() << "started";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("rate_hz = -5"), std::string::npos) << e.what();
+  }
+  ros::NodeHandle empty("/no_parameters");
+  EXPECT_THROW(DeformableCollisionNode(ros::NodeHandle(), empty), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace deformable_collision
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_nodelet");
+  ros::NodeHandle keep_alive;
+  return RUN_ALL_TESTS();
+}
