@@ -8,10 +8,10 @@ JOBS ?= 2
 RVIZ ?= 0
 DEMO_ARGS ?=
 
-.PHONY: deps build test demo bench clean
+.PHONY: deps build test demo bench screenshot clean
 
 deps:
-	@bash scripts/install_deps
+	@bash scripts/install_deps $(if $(filter 1,$(RVIZ)),rviz)
 
 build: deps
 	@bash scripts/build_workspace "$(WORKSPACE)" "$(JOBS)"
@@ -26,6 +26,11 @@ bench: build
 	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_shape_matching" --benchmark_counters_tabular=true
 	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_collision" 80000 20
 	@"$(WORKSPACE)/devel/lib/deformable_collision/bench_scene" 150 20
+
+# docs/demo.png: the demo in rviz, rendered headless under Xvfb.
+screenshot: RVIZ := 1
+screenshot: build
+	@bash scripts/render_demo_png "$(WORKSPACE)" docs/demo.png
 
 clean:
 	rm -rf build
