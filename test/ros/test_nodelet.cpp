@@ -274,6 +274,9 @@ TEST_F(NodeletTest, MalformedCloudsLeaveTheNodeRunningAndItsStateIntact) {
   PointCloud2 no_frame = good;
   no_frame.header.frame_id.clear();
   malformed.push_back(no_frame);
+  PointCloud2 unknown_frame = good;  // no transform to the fixed frame: the last state stays
+  unknown_frame.header.frame_id = "nowhere";
+  malformed.push_back(unknown_frame);
   // One at a time: the node keeps only the newest clouds of a topic.
   for (std::size_t k = 0; k < malformed.size(); ++k) {
     inputs_["probe"].publish(malformed[k]);
@@ -302,6 +305,20 @@ TEST_F(NodeletTest, TrackedCloudsMoveTheObjectAndItsContacts) {
   inputs_["probe"].publish(cloudOf(lifted, "world"));
   ASSERT_TRUE(waitFor([&] { return probeAt(lifted); }));
   EXPECT_TRUE(getContacts("probe", "", -1).response.contacts.contacts.empty());
+}
+
+TEST_F(NodeletTest, ResetCloudsGiveANewRestShape) {
+  Points smaller = ballPoints();
+  smaller.resize(smaller.size() / 2);
+  for (auto& p : smaller) p.z() += 0.1;
+  inputs_["ball"].publish(cloudOf(smaller, "world"));
+  ASSERT_TRUE(waitFor([&] {
+    auto& clouds = deformed_["ball"];
+    Points published;
+    return !clouds.empty() &&
+           readCloudPoints(*clouds.back(), NonFinitePoints::kDrop, 1 << 20, published).ok() &&
+           published.size() == smaller.size() && (published[0] - smaller[0]).norm() < 1e-5;
+  })) << "the ball kept its old shape";
 }
 
 TEST_F(NodeletTest, KinematicObjectFollowsItsFrame) {
