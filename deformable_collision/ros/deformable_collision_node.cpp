@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "deformable_collision/core/point_spacing.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace deformable_collision {
@@ -131,6 +132,7 @@ void DeformableCollisionNode::applyCloud(ObjectSlot& slot, std::vector<Eigen::Ve
     ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
              points.size(), slot.subscriber.getTopic().c_str(),
              toString(slot.params.object.kind));
+    warnIfPorous(slot.params.object.name, points);
   } else if (slot.params.on_cloud == OnCloud::kReset) {
     scene_.resetRestShape(*slot.index, points);
   } else {
@@ -139,6 +141,19 @@ void DeformableCollisionNode::applyCloud(ObjectSlot& slot, std::vector<Eigen::Ve
   if (pose) {
     scene_.setPose(*slot.index, *pose);
     slot.last_pose = *pose;
+  }
+}
+
+void DeformableCollisionNode::warnIfPorous(const std::string& name,
+                                            const std::vector<Eigen::Vector3d>& points) const {
+  // Against a dense cloud a sparse one still shows contacts; two clouds sparser than this
+  // can cross without a single pair of points coming within the contact distance.
+  const double spacing = typicalPointSpacing(points);
+  if (spacing > 2.0 * config_.scene.contact_distance_m) {
+    ROS_WARN("object '%s': its points are about %.4f m apart, more than twice "
+             "contact_distance_m = %.4f m, so clouds as sparse can pass between them; raise "
+             "contact_distance_m towards the spacing", name.c_str(), spacing,
+             config_.scene.contact_distance_m);
   }
 }
 

@@ -45,6 +45,8 @@ class DeformableCollisionNode {
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
   void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
+  /// Points far apart compared with the contact distance let other clouds through: say so.
+  void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
   bool transformPoints(const std::string& target_frame, const sensor_msgs::PointCloud2& cloud,
                        const std::string& topic, std::vector<Eigen::Vector3d>& points);
   void followFrames();
