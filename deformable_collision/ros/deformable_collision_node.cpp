@@ -80,6 +80,17 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
 
 void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud,
                                       std::size_t index) {
+  // An exception leaving a callback would take the whole nodelet manager down.
+  try {
+    handleCloud(*cloud, index);
+  } catch (const std::exception& e) {
+    ++stats_message_.clouds_rejected;
+    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: %s",
+                       slots_[index].subscriber.getTopic().c_str(), e.what());
+  }
+}
+
+void DeformableCollisionNode::handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t index) {
   const auto arrival = Clock::now();
   ObjectSlot& slot = slots_[index];
   ++stats_message_.clouds_received;
@@ -94,24 +105,47 @@ void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cl
                        topic.c_str(), name.c_str(), problem.c_str());
   };
 
-  const bool tracking = !first && slot.params.on_cloud == OnCloud::kTrack;
+  // A tracked object keeps non-finite points as unobserved slots, so that point i of every
+  // cloud is the same point even when the first cloud has holes (organized depth clouds).
+  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
   const CloudReadResult read =
-      readCloudPoints(*cloud, tracking ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
+      readCloudPoints(cloud, tracked ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
                       config_.max_points_per_object, cloud_points_);
   if (!read.ok()) return reject(read.error);
-  if (cloud_points_.empty()) {
-    return reject(read.non_finite > 0 ? "every point is non-finite" : "the cloud is empty");
+  if (cloud_points_.empty()) return reject("the cloud is empty");
+  if (tracked && !first && cloud_points_.size() != slot.tracked_cloud_size) {
+    return reject("it has " + std::to_string(cloud_points_.size()) + " points, the first had " +
+                  std::to_string(slot.tracked_cloud_size) +
+                  " (a tracked object keeps its points; on_cloud: reset takes a new shape)");
   }
   const bool kinematic = slot.params.object.kind == ObjectKind::kKinematic;
   const std::string& target_frame = kinematic ? slot.params.follow_frame : config_.fixed_frame;
-  if (!transformPoints(target_frame, *cloud, topic, cloud_points_)) {
+  if (!transformPoints(target_frame, cloud, topic, cloud_points_)) {
     ++stats_message_.clouds_rejected;
     return;
   }
+  std::vector<Eigen::Vector3d>* shape = &cloud_points_;
+  std::vector<std::uint32_t> first_finite;
+  if (tracked) {
+    if (first) {
+      for (std::uint32_t i = 0; i < cloud_points_.size(); ++i) {
+        if (cloud_points_[i].allFinite()) first_finite.push_back(i);
+      }
+      if (first_finite.empty()) return reject("every point is non-finite");
+    }
+    const auto& indices = first ? first_finite : slot.tracked_indices;
+    tracked_points_.resize(indices.size());
+    for (std::size_t k = 0; k < indices.size(); ++k) tracked_points_[k] = cloud_points_[indices[k]];
+    shape = &tracked_points_;
+  }
   try {
-    applyCloud(slot, cloud_points_, first);
+    applyCloud(slot, *shape, first);
   } catch (const std::exception& e) {
     return reject(e.what());
+  }
+  if (tracked && first) {
+    slot.tracked_indices = std::move(first_finite);
+    slot.tracked_cloud_size = cloud_points_.size();
   }
   stats_message_.non_finite_points += read.non_finite;
   if (!slot.pending_since) slot.pending_since = arrival;
@@ -208,6 +242,14 @@ void DeformableCollisionNode::followFrames() {
 }
 
 void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
+  try {
+    runCycle();
+  } catch (const std::exception& e) {
+    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cycle failed: %s", e.what());
+  }
+}
+
+void DeformableCollisionNode::runCycle() {
   const auto start = Clock::now();
   followFrames();
   scene_.cycle();

@@ -41,9 +41,14 @@ class DeformableCollisionNode {
     ros::Publisher deformed;
     std::optional<Clock::time_point> pending_since;  ///< Oldest cloud not yet cycled.
     std::optional<Eigen::Isometry3d> last_pose;      ///< Kinematic objects.
+    /// Tracked objects: the cloud indices of the object's points (the first cloud's finite
+    /// ones) and that cloud's size, which every later cloud must have.
+    std::vector<std::uint32_t> tracked_indices;
+    std::size_t tracked_cloud_size = 0;
   };
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
+  void handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot);
   void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
   /// Points far apart compared with the contact distance let other clouds through: say so.
   void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
@@ -51,6 +56,7 @@ class DeformableCollisionNode {
                        const std::string& topic, std::vector<Eigen::Vector3d>& points);
   void followFrames();
   void onTimer(const ros::TimerEvent& event);
+  void runCycle();
   void fillContactArray(const std::vector<SceneContact>& contacts, int level,
                         ContactArray& message) const;
   bool onSetLevel(SetLevel::Request& request, SetLevel::Response& response);
@@ -77,6 +83,7 @@ class DeformableCollisionNode {
 
   HierarchyMarkers markers_;
   std::vector<Eigen::Vector3d> cloud_points_;
+  std::vector<Eigen::Vector3d> tracked_points_;
   std::vector<SceneContact> query_contacts_;
   Stats stats_message_;
 };

@@ -160,6 +160,10 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
   }
   params.topic = read.requiredText("topic");
   params.follow_frame = read.text("follow_frame", "");
+  if (!params.follow_frame.empty() && params.follow_frame[0] == '/') {
+    ParamReader::fail(read.name("follow_frame"), "= '" + params.follow_frame +
+                                                     "' starts with '/', which tf2 refuses");
+  }
   const bool dynamic = read.flag("dynamic", true);
 
   const std::string on_cloud = read.text("on_cloud", toString(OnCloud::kIgnore));
@@ -242,6 +246,9 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params) {
   NodeConfig config;
   config.fixed_frame = read.text("fixed_frame", config.fixed_frame);
   if (config.fixed_frame.empty()) ParamReader::fail("fixed_frame", "is empty");
+  if (config.fixed_frame[0] == '/') {
+    ParamReader::fail("fixed_frame", "= '" + config.fixed_frame + "' starts with '/', which tf2 refuses");
+  }
   config.rate_hz = read.number("rate_hz", config.rate_hz, 0.0, 10000.0, true);
   config.max_points_per_object = static_cast<std::size_t>(read.integer(
       "max_points_per_object", static_cast<long>(config.max_points_per_object), 1,

@@ -122,6 +122,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"GravityOfTwo", [](XmlRpcValue& p) {
           XmlRpcValue two; two[0] = 0.0; two[1] = -9.81; p["gravity"] = two; }, "gravity must be a list of 3"},
         BadParamCase{"EmptyFrame", [](XmlRpcValue& p) { p["fixed_frame"] = ""; }, "fixed_frame is empty"},
+        BadParamCase{"SlashedFrame", [](XmlRpcValue& p) { p["fixed_frame"] = "/world"; }, "fixed_frame = '/world'"},
+        BadParamCase{"SlashedFollowFrame", [](XmlRpcValue& p) { p["objects"][2]["follow_frame"] = "/link"; }, "objects[2].follow_frame = '/link'"},
         BadParamCase{"ZeroPointLimit", [](XmlRpcValue& p) { p["max_points_per_object"] = 0; }, "max_points_per_object"},
         BadParamCase{"MisspeltTopLevel", [](XmlRpcValue& p) { p["contact_distance"] = 0.1; }, "contact_distance is not a known"},
         BadParamCase{"MisspeltMarkers", [](XmlRpcValue& p) { p["markers"]["coliding_only"] = true; }, "markers.coliding_only"},
