@@ -211,26 +211,26 @@ std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vect
     checked.shape.damping = 0.0;
   }
   if (config.kind == ObjectKind::kKinematic) checked.shape.mode = DeformationMode::kRigid;
-  try {
-    objects_.push_back(std::make_unique<Object>(checked, std::move(rest_points_m), config_.tree));
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument("object '" + config.name + "': " + e.what());
-  }
-  if (!objects_.back()->dynamic()) objects_.back()->computeNodePlanes();
+  objects_.push_back(makeObject(checked, std::move(rest_points_m)));
   sweep_order_.reserve(objects_.size());
   return objects_.size() - 1;
 }
 
 void Scene::resetRestShape(std::size_t object, std::vector<Eigen::Vector3d> rest_points_m) {
   std::unique_ptr<Object>& slot = objects_.at(object);
-  std::unique_ptr<Object> replacement;
+  slot = makeObject(slot->config, std::move(rest_points_m));
+}
+
+std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
+                                                 std::vector<Eigen::Vector3d> rest_points_m) const {
+  std::unique_ptr<Object> made;
   try {
-    replacement = std::make_unique<Object>(slot->config, std::move(rest_points_m), config_.tree);
+    made = std::make_unique<Object>(config, std::move(rest_points_m), config_.tree);
   } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument("object '" + slot->config.name + "': " + e.what());
+    throw std::invalid_argument("object '" + config.name + "': " + e.what());
   }
-  if (!replacement->dynamic()) replacement->computeNodePlanes();
-  slot = std::move(replacement);
+  if (!made->dynamic()) made->computeNodePlanes();
+  return made;
 }
 
 void Scene::setPose(std::size_t object, const Eigen::Isometry3d& pose) {

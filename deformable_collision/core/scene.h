@@ -136,6 +136,9 @@ class Scene {
  private:
   struct Object;
 
+  /// An object with its hierarchy (and rest planes, if fixed); names the object if it throws.
+  std::unique_ptr<Object> makeObject(const ObjectConfig& config,
+                                     std::vector<Eigen::Vector3d> rest_points_m) const;
   void refreshStaleTrees();
   void sweepAndPrune();
   void detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,

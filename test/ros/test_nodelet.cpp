@@ -63,6 +63,19 @@ PointCloud2 cloudOf(const Points& points, const std::string& frame) {
   return cloud;
 }
 
+/// The test's tf frame of the jaw, at `origin` in the world.
+geometry_msgs::TransformStamped jawFrame(const Eigen::Vector3d& origin) {
+  geometry_msgs::TransformStamped frame;
+  frame.header.stamp = ros::Time::now();
+  frame.header.frame_id = "world";
+  frame.child_frame_id = "test_jaw";
+  frame.transform.translation.x = origin.x();
+  frame.transform.translation.y = origin.y();
+  frame.transform.translation.z = origin.z();
+  frame.transform.rotation.w = 1.0;
+  return frame;
+}
+
 bool waitFor(const std::function<bool()>& done, double timeout_s = kTimeoutS) {
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
   while (ros::ok() && ros::WallTime::now() < deadline) {
@@ -76,15 +89,7 @@ bool waitFor(const std::function<bool()>& done, double timeout_s = kTimeoutS) {
 class NodeletTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    geometry_msgs::TransformStamped jaw_frame;
-    jaw_frame.header.stamp = ros::Time::now();
-    jaw_frame.header.frame_id = "world";
-    jaw_frame.child_frame_id = "test_jaw";
-    jaw_frame.transform.translation.x = kJawOrigin.x();
-    jaw_frame.transform.translation.y = kJawOrigin.y();
-    jaw_frame.transform.translation.z = kJawOrigin.z();
-    jaw_frame.transform.rotation.w = 1.0;
-    tf_broadcaster_.sendTransform(jaw_frame);
+    tf_broadcaster_.sendTransform(jawFrame(kJawOrigin));
 
     for (const auto& name : kObjects) {
       inputs_[name] = handle_.advertise<PointCloud2>("/test/" + name, 10, name != "probe");
@@ -374,15 +379,7 @@ TEST_F(NodeletTest, KinematicObjectFollowsItsFrame) {
   ASSERT_TRUE(waitFor([&] { return jawAt(kJawOrigin); }));
   // The frame moves: the object follows without a new cloud.
   const Eigen::Vector3d moved_origin = kJawOrigin + Eigen::Vector3d(0.0, 0.1, 0.02);
-  geometry_msgs::TransformStamped jaw_frame;
-  jaw_frame.header.stamp = ros::Time::now();
-  jaw_frame.header.frame_id = "world";
-  jaw_frame.child_frame_id = "test_jaw";
-  jaw_frame.transform.translation.x = moved_origin.x();
-  jaw_frame.transform.translation.y = moved_origin.y();
-  jaw_frame.transform.translation.z = moved_origin.z();
-  jaw_frame.transform.rotation.w = 1.0;
-  tf_broadcaster_.sendTransform(jaw_frame);
+  tf_broadcaster_.sendTransform(jawFrame(moved_origin));
   EXPECT_TRUE(waitFor([&] { return jawAt(moved_origin); })) << "the jaw stayed where it was";
 }
 
