@@ -4,7 +4,6 @@
 #include <boost/make_shared.hpp>
 
 #include <algorithm>
-#include <sstream>
 
 #include "deformable_collision/core/point_spacing.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
@@ -59,6 +58,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     ObjectSlot& slot = slots_[i];
     slot.params = config_.objects[i];
+    named_objects_.push_back({slot.params.object.name, std::nullopt});
     slot.deformed = private_handle_.advertise<sensor_msgs::PointCloud2>(
         "deformed/" + slot.params.object.name, 1);
     slot.subscriber = node_handle_.subscribe<sensor_msgs::PointCloud2>(
@@ -262,7 +262,7 @@ void DeformableCollisionNode::runCycle() {
   if (contacts_publisher_.getNumSubscribers() > 0) {
     auto message = boost::make_shared<ContactArray>();
     message->header = header;
-    fillContactArray(scene_.contacts(), cycle.level, *message);
+    fillContactArray(scene_, scene_.contacts(), cycle.level, *message);
     contacts_publisher_.publish(message);
   }
   const auto contacts_published = Clock::now();
@@ -317,100 +317,17 @@ void DeformableCollisionNode::runCycle() {
   stats_publisher_.publish(stats);
 }
 
-void DeformableCollisionNode::fillContactArray(const std::vector<SceneContact>& contacts, int level,
-                                               ContactArray& message) const {
-  message.level = static_cast<std::uint8_t>(level);
-  message.contacts.resize(contacts.size());
-  for (std::size_t k = 0; k < contacts.size(); ++k) {
-    const SceneContact& from = contacts[k];
-    Contact& to = message.contacts[k];
-    to.object_a = scene_.objectConfig(from.object_a).name;
-    to.object_b = scene_.objectConfig(from.object_b).name;
-    to.sphere_a = from.contact.node_a;
-    to.sphere_b = from.contact.node_b;
-    to.level = static_cast<std::uint8_t>(from.contact.level);
-    to.position.x = from.contact.position.x();
-    to.position.y = from.contact.position.y();
-    to.position.z = from.contact.position.z();
-    to.normal.x = from.contact.normal.x();
-    to.normal.y = from.contact.normal.y();
-    to.normal.z = from.contact.normal.z();
-    to.depth = from.contact.depth_m;
-  }
-}
-
 bool DeformableCollisionNode::onSetLevel(SetLevel::Request& request, SetLevel::Response& response) {
-  response.max_level = static_cast<std::uint8_t>(scene_.maxLevel());
-  response.level = static_cast<std::uint8_t>(scene_.level());
-  if (scene_.objectCount() == 0) {
-    response.success = false;
-    response.message = "no object has a rest shape yet, so there are no levels: publish clouds first";
-    return true;
-  }
-  if (request.level > scene_.maxLevel()) {
-    response.success = false;
-    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
-                       std::to_string(scene_.maxLevel()) + "] (" +
-                       std::to_string(scene_.maxLevel()) + " is the leaf level)";
-    return true;
-  }
-  scene_.setLevel(request.level);
-  response.success = true;
-  response.level = static_cast<std::uint8_t>(scene_.level());
-  response.message = "level " + std::to_string(scene_.level()) + " of [0, " +
-                     std::to_string(scene_.maxLevel()) + "]";
+  answerSetLevel(scene_, request, response);
   return true;
-}
-
-bool DeformableCollisionNode::resolveObject(const std::string& name,
-                                            std::optional<std::size_t>& index,
-                                            bool& has_shape, std::string& problem) const {
-  index.reset();
-  has_shape = true;
-  if (name.empty()) return true;
-  for (const ObjectSlot& slot : slots_) {
-    if (slot.params.object.name != name) continue;
-    index = slot.index;
-    has_shape = slot.index.has_value();
-    return true;
-  }
-  std::ostringstream known;
-  for (std::size_t i = 0; i < slots_.size(); ++i) {
-    known << (i ? ", " : "") << slots_[i].params.object.name;
-  }
-  problem = "unknown object '" + name + "'; the objects are: " + known.str();
-  return false;
 }
 
 bool DeformableCollisionNode::onGetContacts(GetContacts::Request& request,
                                             GetContacts::Response& response) {
+  for (std::size_t i = 0; i < slots_.size(); ++i) named_objects_[i].scene_index = slots_[i].index;
+  answerGetContacts(scene_, named_objects_, request, query_contacts_, response);
   response.contacts.header.stamp = ros::Time::now();
   response.contacts.header.frame_id = config_.fixed_frame;
-  response.success = false;
-  std::optional<std::size_t> a, b;
-  bool a_has_shape = true, b_has_shape = true;
-  if (!resolveObject(request.object_a, a, a_has_shape, response.message) ||
-      !resolveObject(request.object_b, b, b_has_shape, response.message)) {
-    return true;
-  }
-  const int max_level = scene_.maxLevel();
-  if (request.level < -1 || request.level > max_level) {
-    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
-                       std::to_string(max_level) + "] (-1: the current level)";
-    return true;
-  }
-  const int level = request.level == -1 ? scene_.level() : request.level;
-  response.success = true;
-  response.contacts.level = static_cast<std::uint8_t>(level);
-  if (!a_has_shape || !b_has_shape) {
-    response.message = "object '" + (a_has_shape ? request.object_b : request.object_a) +
-                       "' has had no valid cloud yet: no contacts";
-    return true;
-  }
-  scene_.contactsAt(level, a, b, query_contacts_);
-  fillContactArray(query_contacts_, level, response.contacts);
-  response.message = std::to_string(query_contacts_.size()) + " contacts at level " +
-                     std::to_string(level);
   return true;
 }
 

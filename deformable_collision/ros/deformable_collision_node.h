@@ -17,6 +17,7 @@
 #include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
 #include "deformable_collision/core/scene.h"
+#include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/hierarchy_markers.h"
 #include "deformable_collision/ros/node_config.h"
 
@@ -57,14 +58,8 @@ class DeformableCollisionNode {
   void followFrames();
   void onTimer(const ros::TimerEvent& event);
   void runCycle();
-  void fillContactArray(const std::vector<SceneContact>& contacts, int level,
-                        ContactArray& message) const;
   bool onSetLevel(SetLevel::Request& request, SetLevel::Response& response);
   bool onGetContacts(GetContacts::Request& request, GetContacts::Response& response);
-  /// Scene index of a named object (std::nullopt for "any", the empty name) and whether it
-  /// has a rest shape yet; false, with `problem` said, if no object has that name.
-  bool resolveObject(const std::string& name, std::optional<std::size_t>& index,
-                     bool& has_shape, std::string& problem) const;
 
   ros::NodeHandle node_handle_;
   ros::NodeHandle private_handle_;
@@ -85,6 +80,8 @@ class DeformableCollisionNode {
   std::vector<Eigen::Vector3d> cloud_points_;
   std::vector<Eigen::Vector3d> tracked_points_;
   std::vector<SceneContact> query_contacts_;
+  /// The services' view of slots_: names point into slots_[i].params, which never moves.
+  std::vector<NamedObject> named_objects_;
   Stats stats_message_;
 };
 

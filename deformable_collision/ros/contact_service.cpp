@@ -1,0 +1,104 @@
+#include "deformable_collision/ros/contact_service.h"
+
+#include <sstream>
+#include <string>
+
+namespace deformable_collision {
+namespace {
+
+/// Finds a named object; the empty name is "any" (std::nullopt, with a shape).
+/// False, with `problem` said, if no object has that name.
+bool resolveObject(const std::vector<NamedObject>& objects, const std::string& name,
+                   std::optional<std::size_t>& index, bool& has_shape, std::string& problem) {
+  index.reset();
+  has_shape = true;
+  if (name.empty()) return true;
+  for (const NamedObject& object : objects) {
+    if (object.name != name) continue;
+    index = object.scene_index;
+    has_shape = object.scene_index.has_value();
+    return true;
+  }
+  std::ostringstream known;
+  for (std::size_t i = 0; i < objects.size(); ++i) known << (i ? ", " : "") << objects[i].name;
+  problem = "unknown object '" + name + "'; the objects are: " + known.str();
+  return false;
+}
+
+}  // namespace
+
+void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response) {
+  response.max_level = static_cast<std::uint8_t>(scene.maxLevel());
+  response.level = static_cast<std::uint8_t>(scene.level());
+  if (scene.objectCount() == 0) {
+    response.success = false;
+    response.message = "no object has a rest shape yet, so there are no levels: publish clouds first";
+    return;
+  }
+  if (request.level > scene.maxLevel()) {
+    response.success = false;
+    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
+                       std::to_string(scene.maxLevel()) + "] (" +
+                       std::to_string(scene.maxLevel()) + " is the leaf level)";
+    return;
+  }
+  scene.setLevel(request.level);
+  response.success = true;
+  response.level = static_cast<std::uint8_t>(scene.level());
+  response.message = "level " + std::to_string(scene.level()) + " of [0, " +
+                     std::to_string(scene.maxLevel()) + "]";
+}
+
+void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
+                       const GetContacts::Request& request, std::vector<SceneContact>& scratch,
+                       GetContacts::Response& response) {
+  response.success = false;
+  response.contacts.contacts.clear();
+  std::optional<std::size_t> a, b;
+  bool a_has_shape = true, b_has_shape = true;
+  if (!resolveObject(objects, request.object_a, a, a_has_shape, response.message) ||
+      !resolveObject(objects, request.object_b, b, b_has_shape, response.message)) {
+    return;
+  }
+  const int max_level = scene.maxLevel();
+  if (request.level < -1 || request.level > max_level) {
+    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
+                       std::to_string(max_level) + "] (-1: the current level)";
+    return;
+  }
+  const int level = request.level == -1 ? scene.level() : request.level;
+  response.success = true;
+  response.contacts.level = static_cast<std::uint8_t>(level);
+  if (!a_has_shape || !b_has_shape) {
+    response.message = "object '" + (a_has_shape ? request.object_b : request.object_a) +
+                       "' has had no valid cloud yet: no contacts";
+    return;
+  }
+  scene.contactsAt(level, a, b, scratch);
+  fillContactArray(scene, scratch, level, response.contacts);
+  response.message = std::to_string(scratch.size()) + " contacts at level " + std::to_string(level);
+}
+
+void fillContactArray(const Scene& scene, const std::vector<SceneContact>& contacts, int level,
+                      ContactArray& message) {
+  message.level = static_cast<std::uint8_t>(level);
+  message.contacts.resize(contacts.size());
+  for (std::size_t k = 0; k < contacts.size(); ++k) {
+    const SceneContact& from = contacts[k];
+    Contact& to = message.contacts[k];
+    to.object_a = scene.objectConfig(from.object_a).name;
+    to.object_b = scene.objectConfig(from.object_b).name;
+    to.sphere_a = from.contact.node_a;
+    to.sphere_b = from.contact.node_b;
+    to.level = static_cast<std::uint8_t>(from.contact.level);
+    to.position.x = from.contact.position.x();
+    to.position.y = from.contact.position.y();
+    to.position.z = from.contact.position.z();
+    to.normal.x = from.contact.normal.x();
+    to.normal.y = from.contact.normal.y();
+    to.normal.z = from.contact.normal.z();
+    to.depth = from.contact.depth_m;
+  }
+}
+
+}  // namespace deformable_collision

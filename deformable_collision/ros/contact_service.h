@@ -1,0 +1,40 @@
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string_view>
+#include <vector>
+
+#include "deformable_collision/ContactArray.h"
+#include "deformable_collision/GetContacts.h"
+#include "deformable_collision/SetLevel.h"
+#include "deformable_collision/core/scene.h"
+
+namespace deformable_collision {
+
+/// An object as the services know it: its configured name and, once a cloud gave it a
+/// shape, its index in the scene.
+struct NamedObject {
+  std::string_view name;
+  std::optional<std::size_t> scene_index;
+};
+
+/// The answers of `~set_level` and `~get_contacts`, apart from the node so that tests and
+/// fuzzers can put any request to them. A bad request gets success = false and a message
+/// that says what is wrong; it changes nothing.
+
+/// Sets the scene's running level if the request is in [0, maxLevel()].
+void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response);
+
+/// Contacts of the named objects (empty name: any) at the requested level (-1: the running
+/// one) on the current state; the running level is left alone. `scratch` holds the contacts
+/// between calls so that repeated queries reuse its memory. The caller sets the header.
+void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
+                       const GetContacts::Request& request, std::vector<SceneContact>& scratch,
+                       GetContacts::Response& response);
+
+/// Writes `contacts` (found at `level`) as a message, with the objects' names.
+void fillContactArray(const Scene& scene, const std::vector<SceneContact>& contacts, int level,
+                      ContactArray& message);
+
+}  // namespace deformable_collision

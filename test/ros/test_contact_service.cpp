@@ -1,0 +1,145 @@
+#include "deformable_collision/ros/contact_service.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "deformable_collision/core/demo_scenes.h"
+
+namespace deformable_collision {
+namespace {
+
+/// The squeezed gripper (every kind of object, contacts), plus a configured object that
+/// has had no cloud yet.
+class ContactServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    scene_ = makeDemoScene(DemoScene::kGripper, 3000);
+    for (int step = 0; step < 150; ++step) {
+      driveDemoScene(DemoScene::kGripper, *scene_, step * scene_->config().dt_s);
+      scene_->cycle();
+    }
+    for (std::size_t i = 0; i < scene_->objectCount(); ++i) {
+      objects_.push_back({scene_->objectConfig(i).name, i});
+    }
+    objects_.push_back({"late", std::nullopt});
+    ASSERT_FALSE(scene_->contacts().empty());
+  }
+
+  GetContacts::Response ask(const std::string& a, const std::string& b, int level) {
+    GetContacts::Request request;
+    request.object_a = a;
+    request.object_b = b;
+    request.level = static_cast<std::int16_t>(level);
+    GetContacts::Response response;
+    answerGetContacts(*scene_, objects_, request, scratch_, response);
+    return response;
+  }
+
+  std::unique_ptr<Scene> scene_;
+  std::vector<NamedObject> objects_;
+  std::vector<SceneContact> scratch_;
+};
+
+TEST_F(ContactServiceTest, SetLevelTakesALevelInRangeAndRefusesOthers) {
+  const int max_level = scene_->maxLevel();
+  struct Case {
+    const char* name;
+    int level;
+    bool success;
+  };
+  const Case cases[] = {{"root", 0, true},        {"middle", max_level / 2, true},
+                        {"leaves", max_level, true}, {"one past the leaves", max_level + 1, false},
+                        {"largest uint8", 255, false}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const int before = scene_->level();
+    SetLevel::Request request;
+    request.level = static_cast<std::uint8_t>(c.level);
+    SetLevel::Response response;
+    answerSetLevel(*scene_, request, response);
+    EXPECT_EQ(response.success, c.success);
+    EXPECT_EQ(response.max_level, max_level);
+    EXPECT_EQ(response.level, scene_->level());
+    EXPECT_EQ(scene_->level(), c.success ? c.level : before);
+    if (!c.success) {
+      EXPECT_NE(response.message.find("outside [0, "), std::string::npos) << response.message;
+    }
+  }
+}
+
+TEST(ContactService, SetLevelOnAnEmptySceneSaysWhy) {
+  Scene scene{SceneConfig{}};
+  SetLevel::Request request;
+  SetLevel::Response response;
+  answerSetLevel(scene, request, response);
+  EXPECT_FALSE(response.success);
+  EXPECT_NE(response.message.find("publish clouds first"), std::string::npos);
+}
+
+TEST_F(ContactServiceTest, GetContactsAtMinusOneAnswersAtTheRunningLevel) {
+  // The state has moved on since the cycle found its contacts (the response pushed the
+  // objects apart), so the answer is compared with an explicit query, not contacts().
+  const GetContacts::Response running = ask("", "", -1);
+  const GetContacts::Response explicit_level = ask("", "", scene_->level());
+  ASSERT_TRUE(running.success) << running.message;
+  EXPECT_EQ(running.contacts.level, scene_->level());
+  EXPECT_FALSE(running.contacts.contacts.empty());
+  EXPECT_EQ(running.contacts.contacts, explicit_level.contacts.contacts);
+  for (const Contact& contact : running.contacts.contacts) {
+    EXPECT_NEAR(std::hypot(contact.normal.x, contact.normal.y, contact.normal.z), 1.0, 1e-9);
+    EXPECT_TRUE(std::isfinite(contact.depth));
+  }
+}
+
+TEST_F(ContactServiceTest, GetContactsOfOneObjectAtAnotherLevelLeavesTheRunningLevel) {
+  const int running = scene_->level();
+  for (int level = 0; level <= scene_->maxLevel(); ++level) {
+    SCOPED_TRACE(level);
+    const GetContacts::Response response = ask("fruit", "", level);
+    ASSERT_TRUE(response.success) << response.message;
+    EXPECT_EQ(response.contacts.level, level);
+    EXPECT_FALSE(response.contacts.contacts.empty());
+    for (const Contact& contact : response.contacts.contacts) {
+      EXPECT_TRUE(contact.object_a == "fruit" || contact.object_b == "fruit");
+      EXPECT_EQ(contact.level, level);
+    }
+    EXPECT_EQ(scene_->level(), running);
+  }
+}
+
+TEST_F(ContactServiceTest, GetContactsRefusesBadRequestsSayingWhy) {
+  const int max_level = scene_->maxLevel();
+  struct Case {
+    const char* name;
+    std::string a, b;
+    int level;
+    const char* says;
+  };
+  const Case cases[] = {
+      {"unknown a", "plum", "", -1, "unknown object 'plum'; the objects are: "},
+      {"unknown b", "fruit", "Fruit", -1, "unknown object 'Fruit'"},
+      {"level below -1", "", "", -2, "level -2 is outside [0, "},
+      {"level past the leaves", "", "", max_level + 1, "(-1: the current level)"},
+      {"largest int16", "", "", 32767, "level 32767 is outside"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const GetContacts::Response response = ask(c.a, c.b, c.level);
+    EXPECT_FALSE(response.success);
+    EXPECT_TRUE(response.contacts.contacts.empty());
+    EXPECT_NE(response.message.find(c.says), std::string::npos) << response.message;
+  }
+}
+
+TEST_F(ContactServiceTest, GetContactsOfAnObjectWithoutACloudIsEmptyAndSaysSo) {
+  const GetContacts::Response response = ask("fruit", "late", 0);
+  EXPECT_TRUE(response.success);
+  EXPECT_TRUE(response.contacts.contacts.empty());
+  EXPECT_NE(response.message.find("'late' has had no valid cloud yet"), std::string::npos)
+      << response.message;
+}
+
+}  // namespace
+}  // namespace deformable_collision
