@@ -80,22 +80,59 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
 
 void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud,
                                       std::size_t index) {
+  ObjectSlot& slot = slots_[index];
+  ++stats_message_.clouds_received;
+  // A newer cloud makes one still waiting for its transform stale (a tracked object must
+  // not step back to it).
+  if (slot.awaiting_transform) {
+    slot.awaiting_transform.reset();
+    ++stats_message_.clouds_rejected;
+    ROS_WARN_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: a newer one came before its "
+                      "transform", slot.subscriber.getTopic().c_str());
+  }
+  const auto arrival = Clock::now();
   // An exception leaving a callback would take the whole nodelet manager down.
   try {
-    handleCloud(*cloud, index);
+    if (handleCloud(*cloud, index, arrival, config_.tf_wait_s == 0.0) ==
+        CloudOutcome::kAwaitingTransform) {
+      slot.awaiting_transform = cloud;
+      slot.awaiting_since = arrival;
+    }
   } catch (const std::exception& e) {
     ++stats_message_.clouds_rejected;
     ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: %s",
-                       slots_[index].subscriber.getTopic().c_str(), e.what());
+                       slot.subscriber.getTopic().c_str(), e.what());
   }
 }
 
-void DeformableCollisionNode::handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t index) {
-  const auto arrival = Clock::now();
+void DeformableCollisionNode::retryAwaitingClouds() {
+  const auto now = Clock::now();
+  for (std::size_t index = 0; index < slots_.size(); ++index) {
+    ObjectSlot& slot = slots_[index];
+    if (!slot.awaiting_transform) continue;
+    const bool last_try =
+        std::chrono::duration<double>(now - slot.awaiting_since).count() >= config_.tf_wait_s;
+    sensor_msgs::PointCloud2ConstPtr cloud = slot.awaiting_transform;
+    try {
+      if (handleCloud(*cloud, index, slot.awaiting_since, last_try) ==
+          CloudOutcome::kAwaitingTransform) {
+        continue;
+      }
+    } catch (const std::exception& e) {
+      ++stats_message_.clouds_rejected;
+      ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: %s",
+                         slot.subscriber.getTopic().c_str(), e.what());
+    }
+    slot.awaiting_transform.reset();
+  }
+}
+
+DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
+    const sensor_msgs::PointCloud2& cloud, std::size_t index, Clock::time_point arrival,
+    bool last_try) {
   ObjectSlot& slot = slots_[index];
-  ++stats_message_.clouds_received;
   const bool first = !slot.index;
-  if (!first && slot.params.on_cloud == OnCloud::kIgnore) return;
+  if (!first && slot.params.on_cloud == OnCloud::kIgnore) return CloudOutcome::kApplied;
 
   const std::string& topic = slot.subscriber.getTopic();
   const std::string& name = slot.params.object.name;
@@ -103,6 +140,7 @@ void DeformableCollisionNode::handleCloud(const sensor_msgs::PointCloud2& cloud,
     ++stats_message_.clouds_rejected;
     ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped, object '%s' unchanged: %s",
                        topic.c_str(), name.c_str(), problem.c_str());
+    return CloudOutcome::kRejected;
   };
 
   // A tracked object keeps non-finite points as unobserved slots, so that point i of every
@@ -120,9 +158,19 @@ void DeformableCollisionNode::handleCloud(const sensor_msgs::PointCloud2& cloud,
   }
   const bool kinematic = slot.params.object.kind == ObjectKind::kKinematic;
   const std::string& target_frame = kinematic ? slot.params.follow_frame : config_.fixed_frame;
-  if (!transformPoints(target_frame, cloud, topic, cloud_points_)) {
-    ++stats_message_.clouds_rejected;
-    return;
+  switch (transformPoints(target_frame, cloud, topic, last_try, cloud_points_)) {
+    case TransformOutcome::kDone:
+      break;
+    case TransformOutcome::kNotYet:
+      return CloudOutcome::kAwaitingTransform;
+    case TransformOutcome::kRefused:
+      ++stats_message_.clouds_rejected;
+      return CloudOutcome::kRejected;
+  }
+  // A kinematic object is placed by its frame's pose, which may come later too.
+  if (kinematic && !last_try &&
+      !tf_buffer_.canTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))) {
+    return CloudOutcome::kAwaitingTransform;
   }
   std::vector<Eigen::Vector3d>* shape = &cloud_points_;
   std::vector<std::uint32_t> first_finite;
@@ -149,6 +197,7 @@ void DeformableCollisionNode::handleCloud(const sensor_msgs::PointCloud2& cloud,
   }
   stats_message_.non_finite_points += read.non_finite;
   if (!slot.pending_since) slot.pending_since = arrival;
+  return CloudOutcome::kApplied;
 }
 
 void DeformableCollisionNode::applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points,
@@ -191,34 +240,37 @@ void DeformableCollisionNode::warnIfPorous(const std::string& name,
   }
 }
 
-bool DeformableCollisionNode::transformPoints(const std::string& target_frame,
-                                              const sensor_msgs::PointCloud2& cloud,
-                                              const std::string& topic,
-                                              std::vector<Eigen::Vector3d>& points) {
+DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoints(
+    const std::string& target_frame, const sensor_msgs::PointCloud2& cloud,
+    const std::string& topic, bool last_try, std::vector<Eigen::Vector3d>& points) {
   if (cloud.header.frame_id.empty()) {
     ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: header.frame_id is empty",
                        topic.c_str());
-    return false;
+    return TransformOutcome::kRefused;
   }
-  if (cloud.header.frame_id == target_frame) return true;
+  if (cloud.header.frame_id == target_frame) return TransformOutcome::kDone;
   std::optional<Eigen::Isometry3d> transform;
   try {
     transform = toIsometry(
         tf_buffer_.lookupTransform(target_frame, cloud.header.frame_id, cloud.header.stamp).transform);
   } catch (const tf2::TransformException& e) {
-    ROS_WARN_THROTTLE(kThrottlePeriodS, "cloud on %s dropped, last state kept: no transform from "
-                      "'%s' to '%s': %s",
-                      topic.c_str(), cloud.header.frame_id.c_str(), target_frame.c_str(), e.what());
-    return false;
+    // The frame, or its pose at the cloud's stamp, may still come: a sensor's tf is often
+    // published after its data.
+    if (!last_try) return TransformOutcome::kNotYet;
+    ROS_WARN_THROTTLE(kThrottlePeriodS, "cloud on %s dropped after waiting tf_wait_s = %.3f s, "
+                      "last state kept: no transform from '%s' to '%s': %s",
+                      topic.c_str(), config_.tf_wait_s, cloud.header.frame_id.c_str(),
+                      target_frame.c_str(), e.what());
+    return TransformOutcome::kRefused;
   }
   if (!transform) {
     ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: the transform from '%s' to '%s' "
                        "is not finite", topic.c_str(), cloud.header.frame_id.c_str(),
                        target_frame.c_str());
-    return false;
+    return TransformOutcome::kRefused;
   }
   for (auto& p : points) p = *transform * p;
-  return true;
+  return TransformOutcome::kDone;
 }
 
 void DeformableCollisionNode::followFrames() {
@@ -243,6 +295,7 @@ void DeformableCollisionNode::followFrames() {
 
 void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
   try {
+    retryAwaitingClouds();
     runCycle();
   } catch (const std::exception& e) {
     ROS_ERROR_THROTTLE(kThrottlePeriodS, "cycle failed: %s", e.what());

@@ -46,15 +46,27 @@ class DeformableCollisionNode {
     /// ones) and that cloud's size, which every later cloud must have.
     std::vector<std::uint32_t> tracked_indices;
     std::size_t tracked_cloud_size = 0;
+    /// The newest cloud whose transform was not there yet, retried each cycle until
+    /// tf_wait_s after its arrival.
+    sensor_msgs::PointCloud2ConstPtr awaiting_transform;
+    Clock::time_point awaiting_since;
   };
 
+  enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
+  enum class TransformOutcome { kDone, kRefused, kNotYet };
+
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
-  void handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot);
+  /// Tries the clouds that wait for their transform; drops those that waited too long.
+  void retryAwaitingClouds();
+  /// `last_try`: a missing transform refuses the cloud instead of making it wait.
+  CloudOutcome handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
+                           Clock::time_point arrival, bool last_try);
   void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
   /// Points far apart compared with the contact distance let other clouds through: say so.
   void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
-  bool transformPoints(const std::string& target_frame, const sensor_msgs::PointCloud2& cloud,
-                       const std::string& topic, std::vector<Eigen::Vector3d>& points);
+  TransformOutcome transformPoints(const std::string& target_frame,
+                                  const sensor_msgs::PointCloud2& cloud, const std::string& topic,
+                                  bool last_try, std::vector<Eigen::Vector3d>& points);
   void followFrames();
   void onTimer(const ros::TimerEvent& event);
   void runCycle();

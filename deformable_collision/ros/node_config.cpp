@@ -1,5 +1,7 @@
 #include "deformable_collision/ros/node_config.h"
 
+#include <ros/names.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -159,6 +161,11 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
                                              "digits and '_' (it names the topic ~deformed/<name>)");
   }
   params.topic = read.requiredText("topic");
+  std::string topic_problem;
+  if (!ros::names::validate(params.topic, topic_problem)) {
+    ParamReader::fail(read.name("topic"), "= '" + params.topic + "' is not a valid topic name: " +
+                                              topic_problem);
+  }
   params.follow_frame = read.text("follow_frame", "");
   if (!params.follow_frame.empty() && params.follow_frame[0] == '/') {
     ParamReader::fail(read.name("follow_frame"), "= '" + params.follow_frame +
@@ -254,6 +261,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params) {
       "max_points_per_object", static_cast<long>(config.max_points_per_object), 1,
       std::numeric_limits<int>::max()));
 
+  config.tf_wait_s = read.number("tf_wait_s", config.tf_wait_s, 0.0, 60.0);
   SceneConfig& scene = config.scene;
   scene.dt_s = read.number("dt", scene.dt_s, 0.0, 0.1, true);
   scene.gravity_mps2 = read.vector3("gravity", scene.gravity_mps2);

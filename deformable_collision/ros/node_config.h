@@ -36,6 +36,9 @@ struct NodeConfig {
   std::string fixed_frame = "world";
   double rate_hz = 100.0;
   std::size_t max_points_per_object = 1000000;
+  /// How long a cloud waits for the transform of its stamp (a sensor frame published late,
+  /// or not yet at all) before it is dropped with a warning.
+  double tf_wait_s = 0.5;
   bool markers_colliding_only = false;
   SceneConfig scene;  ///< dt, gravity, level, contact_distance_m, friction, tree.
   std::vector<ObjectParams> objects;
