@@ -12,6 +12,7 @@ namespace deformable_collision {
 namespace {
 
 constexpr double kThrottlePeriodS = 5.0;
+constexpr std::chrono::seconds kReportPeriod(5);
 
 NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   XmlRpc::XmlRpcValue params;
@@ -86,23 +87,9 @@ void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cl
   // not step back to it).
   if (slot.awaiting_transform) {
     slot.awaiting_transform.reset();
-    ++stats_message_.clouds_rejected;
-    ROS_WARN_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: a newer one came before its "
-                      "transform", slot.subscriber.getTopic().c_str());
+    dropCloud(slot, ros::console::levels::Warn, "a newer one came before its transform");
   }
-  const auto arrival = Clock::now();
-  // An exception leaving a callback would take the whole nodelet manager down.
-  try {
-    if (handleCloud(*cloud, index, arrival, config_.tf_wait_s == 0.0) ==
-        CloudOutcome::kAwaitingTransform) {
-      slot.awaiting_transform = cloud;
-      slot.awaiting_since = arrival;
-    }
-  } catch (const std::exception& e) {
-    ++stats_message_.clouds_rejected;
-    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: %s",
-                       slot.subscriber.getTopic().c_str(), e.what());
-  }
+  processCloud(index, cloud, Clock::now(), config_.tf_wait_s == 0.0);
 }
 
 void DeformableCollisionNode::retryAwaitingClouds() {
@@ -112,19 +99,42 @@ void DeformableCollisionNode::retryAwaitingClouds() {
     if (!slot.awaiting_transform) continue;
     const bool last_try =
         std::chrono::duration<double>(now - slot.awaiting_since).count() >= config_.tf_wait_s;
-    sensor_msgs::PointCloud2ConstPtr cloud = slot.awaiting_transform;
-    try {
-      if (handleCloud(*cloud, index, slot.awaiting_since, last_try) ==
-          CloudOutcome::kAwaitingTransform) {
-        continue;
-      }
-    } catch (const std::exception& e) {
-      ++stats_message_.clouds_rejected;
-      ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: %s",
-                         slot.subscriber.getTopic().c_str(), e.what());
-    }
-    slot.awaiting_transform.reset();
+    const sensor_msgs::PointCloud2ConstPtr cloud = std::move(slot.awaiting_transform);
+    processCloud(index, cloud, slot.awaiting_since, last_try);
   }
+}
+
+void DeformableCollisionNode::processCloud(std::size_t index,
+                                           const sensor_msgs::PointCloud2ConstPtr& cloud,
+                                           Clock::time_point arrival, bool last_try) {
+  ObjectSlot& slot = slots_[index];
+  // An exception leaving a callback would take the whole nodelet manager down.
+  try {
+    if (handleCloud(*cloud, index, arrival, last_try) == CloudOutcome::kAwaitingTransform) {
+      slot.awaiting_transform = cloud;
+      slot.awaiting_since = arrival;
+    }
+  } catch (const std::exception& e) {
+    dropCloud(slot, ros::console::levels::Error, e.what());
+  }
+}
+
+void DeformableCollisionNode::dropCloud(ObjectSlot& slot, ros::console::levels::Level level,
+                                        const std::string& problem) {
+  ++stats_message_.clouds_rejected;
+  ++slot.drops_unreported;
+  // Throttled per object, so that one noisy topic cannot hide another one's problems.
+  const auto now = Clock::now();
+  if (slot.last_report && now - *slot.last_report < kReportPeriod) return;
+  const std::string dropped_before =
+      slot.drops_unreported > 1
+          ? " (" + std::to_string(slot.drops_unreported - 1) + " more dropped since the last report)"
+          : "";
+  ROS_LOG(level, ROSCONSOLE_DEFAULT_NAME, "cloud on %s dropped, object '%s' unchanged: %s%s",
+          slot.subscriber.getTopic().c_str(), slot.params.object.name.c_str(), problem.c_str(),
+          dropped_before.c_str());
+  slot.last_report = now;
+  slot.drops_unreported = 0;
 }
 
 DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
@@ -134,12 +144,8 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
   const bool first = !slot.index;
   if (!first && slot.params.on_cloud == OnCloud::kIgnore) return CloudOutcome::kApplied;
 
-  const std::string& topic = slot.subscriber.getTopic();
-  const std::string& name = slot.params.object.name;
   const auto reject = [&](const std::string& problem) {
-    ++stats_message_.clouds_rejected;
-    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped, object '%s' unchanged: %s",
-                       topic.c_str(), name.c_str(), problem.c_str());
+    dropCloud(slot, ros::console::levels::Error, problem);
     return CloudOutcome::kRejected;
   };
 
@@ -158,14 +164,17 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
   }
   const bool kinematic = slot.params.object.kind == ObjectKind::kKinematic;
   const std::string& target_frame = kinematic ? slot.params.follow_frame : config_.fixed_frame;
-  switch (transformPoints(target_frame, cloud, topic, last_try, cloud_points_)) {
+  std::string problem;
+  switch (transformPoints(target_frame, cloud, last_try, cloud_points_, problem)) {
     case TransformOutcome::kDone:
       break;
     case TransformOutcome::kNotYet:
       return CloudOutcome::kAwaitingTransform;
-    case TransformOutcome::kRefused:
-      ++stats_message_.clouds_rejected;
+    case TransformOutcome::kMissing:
+      dropCloud(slot, ros::console::levels::Warn, problem);
       return CloudOutcome::kRejected;
+    case TransformOutcome::kRefused:
+      return reject(problem);
   }
   // A kinematic object is placed by its frame's pose, which may come later too.
   if (kinematic && !last_try &&
@@ -241,11 +250,10 @@ void DeformableCollisionNode::warnIfPorous(const std::string& name,
 }
 
 DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoints(
-    const std::string& target_frame, const sensor_msgs::PointCloud2& cloud,
-    const std::string& topic, bool last_try, std::vector<Eigen::Vector3d>& points) {
+    const std::string& target_frame, const sensor_msgs::PointCloud2& cloud, bool last_try,
+    std::vector<Eigen::Vector3d>& points, std::string& problem) {
   if (cloud.header.frame_id.empty()) {
-    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: header.frame_id is empty",
-                       topic.c_str());
+    problem = "header.frame_id is empty";
     return TransformOutcome::kRefused;
   }
   if (cloud.header.frame_id == target_frame) return TransformOutcome::kDone;
@@ -257,16 +265,13 @@ DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoin
     // The frame, or its pose at the cloud's stamp, may still come: a sensor's tf is often
     // published after its data.
     if (!last_try) return TransformOutcome::kNotYet;
-    ROS_WARN_THROTTLE(kThrottlePeriodS, "cloud on %s dropped after waiting tf_wait_s = %.3f s, "
-                      "last state kept: no transform from '%s' to '%s': %s",
-                      topic.c_str(), config_.tf_wait_s, cloud.header.frame_id.c_str(),
-                      target_frame.c_str(), e.what());
-    return TransformOutcome::kRefused;
+    problem = "no transform from '" + cloud.header.frame_id + "' to '" + target_frame +
+              "' within tf_wait_s = " + std::to_string(config_.tf_wait_s) + " s: " + e.what();
+    return TransformOutcome::kMissing;
   }
   if (!transform) {
-    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cloud on %s dropped: the transform from '%s' to '%s' "
-                       "is not finite", topic.c_str(), cloud.header.frame_id.c_str(),
-                       target_frame.c_str());
+    problem = "the transform from '" + cloud.header.frame_id + "' to '" + target_frame +
+              "' is not finite";
     return TransformOutcome::kRefused;
   }
   for (auto& p : points) p = *transform * p;

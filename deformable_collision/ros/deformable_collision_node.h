@@ -50,23 +50,30 @@ class DeformableCollisionNode {
     /// tf_wait_s after its arrival.
     sensor_msgs::PointCloud2ConstPtr awaiting_transform;
     Clock::time_point awaiting_since;
+    std::optional<Clock::time_point> last_report;  ///< Of a dropped cloud.
+    std::size_t drops_unreported = 0;
   };
 
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
-  enum class TransformOutcome { kDone, kRefused, kNotYet };
+  enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
   /// Tries the clouds that wait for their transform; drops those that waited too long.
   void retryAwaitingClouds();
+  void processCloud(std::size_t slot, const sensor_msgs::PointCloud2ConstPtr& cloud,
+                    Clock::time_point arrival, bool last_try);
+  /// Counts a dropped cloud and says why, at most once per 5 s per object.
+  void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
   /// `last_try`: a missing transform refuses the cloud instead of making it wait.
   CloudOutcome handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
                            Clock::time_point arrival, bool last_try);
   void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
   /// Points far apart compared with the contact distance let other clouds through: say so.
   void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
+  /// kNotYet: the transform may still come; kMissing: it did not come in time.
   TransformOutcome transformPoints(const std::string& target_frame,
-                                  const sensor_msgs::PointCloud2& cloud, const std::string& topic,
-                                  bool last_try, std::vector<Eigen::Vector3d>& points);
+                                  const sensor_msgs::PointCloud2& cloud, bool last_try,
+                                  std::vector<Eigen::Vector3d>& points, std::string& problem);
   void followFrames();
   void onTimer(const ros::TimerEvent& event);
   void runCycle();

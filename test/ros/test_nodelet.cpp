@@ -15,29 +15,20 @@
 #include "deformable_collision/Stats.h"
 #include "deformable_collision/ros/deformable_collision_node.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
+#include "node_test_support.h"
 
 namespace deformable_collision {
 namespace {
 
-using Points = std::vector<Eigen::Vector3d>;
 using sensor_msgs::PointCloud2;
+using test::cloudOf;
+using test::grid;
+using test::kTimeoutS;
+using test::Points;
+using test::waitFor;
 
 const std::string kNode = "/deformable_collision";
 const std::vector<std::string> kObjects = {"floor", "probe", "jaw", "ball"};
-constexpr double kTimeoutS = 30.0;
-
-Points grid(int nx, int ny, int nz, double spacing, const Eigen::Vector3d& center) {
-  Points points;
-  for (int i = 0; i < nx; ++i) {
-    for (int j = 0; j < ny; ++j) {
-      for (int k = 0; k < nz; ++k) {
-        points.push_back(center + spacing * Eigen::Vector3d(i - (nx - 1) / 2.0, j - (ny - 1) / 2.0,
-                                                            k - (nz - 1) / 2.0));
-      }
-    }
-  }
-  return points;
-}
 
 /// A 0.6 m floor of two layers, top at z = 0.
 Points floorPoints() { return grid(31, 31, 2, 0.02, {0.0, 0.0, -0.01}); }
@@ -55,14 +46,6 @@ Points ballPoints() {
   return ball;
 }
 
-PointCloud2 cloudOf(const Points& points, const std::string& frame) {
-  PointCloud2 cloud;
-  writeCloudPoints(points, cloud);
-  cloud.header.frame_id = frame;
-  cloud.header.stamp = ros::Time::now();
-  return cloud;
-}
-
 /// The test's tf frame of the jaw, at `origin` in the world.
 geometry_msgs::TransformStamped jawFrame(const Eigen::Vector3d& origin) {
   geometry_msgs::TransformStamped frame;
@@ -74,16 +57,6 @@ geometry_msgs::TransformStamped jawFrame(const Eigen::Vector3d& origin) {
   frame.transform.translation.z = origin.z();
   frame.transform.rotation.w = 1.0;
   return frame;
-}
-
-bool waitFor(const std::function<bool()>& done, double timeout_s = kTimeoutS) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::ok() && ros::WallTime::now() < deadline) {
-    ros::spinOnce();
-    if (done()) return true;
-    ros::WallDuration(0.002).sleep();
-  }
-  return done();
 }
 
 class NodeletTest : public ::testing::Test {

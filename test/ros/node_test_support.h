@@ -1,0 +1,53 @@
+#pragma once
+// What the rostests' client nodes share: point grids, clouds, and waiting on events.
+
+#include <ros/ros.h>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "deformable_collision/ros/point_cloud_conversion.h"
+
+namespace deformable_collision {
+namespace test {
+
+using Points = std::vector<Eigen::Vector3d>;
+
+constexpr double kTimeoutS = 30.0;
+
+/// nx x ny x nz points `spacing` apart, centred at `center`.
+inline Points grid(int nx, int ny, int nz, double spacing, const Eigen::Vector3d& center) {
+  Points points;
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      for (int k = 0; k < nz; ++k) {
+        points.push_back(center + spacing * Eigen::Vector3d(i - (nx - 1) / 2.0, j - (ny - 1) / 2.0,
+                                                            k - (nz - 1) / 2.0));
+      }
+    }
+  }
+  return points;
+}
+
+inline sensor_msgs::PointCloud2 cloudOf(const Points& points, const std::string& frame) {
+  sensor_msgs::PointCloud2 cloud;
+  writeCloudPoints(points, cloud);
+  cloud.header.frame_id = frame;
+  cloud.header.stamp = ros::Time::now();
+  return cloud;
+}
+
+/// Spins until `done` or the timeout; returns `done()`.
+inline bool waitFor(const std::function<bool()>& done, double timeout_s = kTimeoutS) {
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::ok() && ros::WallTime::now() < deadline) {
+    ros::spinOnce();
+    if (done()) return true;
+    ros::WallDuration(0.002).sleep();
+  }
+  return done();
+}
+
+}  // namespace test
+}  // namespace deformable_collision
