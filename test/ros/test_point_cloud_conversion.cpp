@@ -139,6 +139,18 @@ TEST(ReadCloud, EmptyCloudIsReadAsNoPoints) {
   EXPECT_TRUE(points.empty());
 }
 
+TEST(ReadCloud, RowsOfNoPointsOverNoDataAreReadAsNoPoints) {
+  // Found by fuzz_point_cloud_conversion: row pointers over empty data were formed (UB).
+  PointCloud2 cloud = makeCloud({}, Layout{});
+  cloud.height = 1000;
+  cloud.width = 0;
+  cloud.row_step = 788;
+  std::vector<Eigen::Vector3d> points = kPoints;
+  const auto result = readCloudPoints(cloud, NonFinitePoints::kKeepAsNaN, 1000, points);
+  ASSERT_TRUE(result.ok()) << result.error;
+  EXPECT_TRUE(points.empty());
+}
+
 struct BadCase {
   const char* name;
   std::function<void(PointCloud2&)> spoil;

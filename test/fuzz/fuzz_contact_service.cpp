@@ -1,0 +1,133 @@
+// libFuzzer target: the answers of ~set_level and ~get_contacts to any sequence of
+// requests, on the squeezed gripper scene (every kind of object, contacts at every level)
+// plus a configured object that has had no cloud. Every input starts from the same state.
+#include <fuzzer/FuzzedDataProvider.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <string>
+
+#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/ros/contact_service.h"
+
+namespace {
+
+using namespace deformable_collision;
+
+struct Fixture {
+  std::unique_ptr<Scene> scene;
+  std::vector<NamedObject> objects;
+  std::vector<SceneContact> scratch;
+  int initial_level = 0;
+};
+
+Fixture& fixture() {
+  static Fixture built = [] {
+    Fixture f;
+    f.scene = makeDemoScene(DemoScene::kGripper, 2000);
+    for (int step = 0; step < 150; ++step) {
+      driveDemoScene(DemoScene::kGripper, *f.scene, step * f.scene->config().dt_s);
+      f.scene->cycle();
+    }
+    for (std::size_t i = 0; i < f.scene->objectCount(); ++i) {
+      f.objects.push_back({f.scene->objectConfig(i).name, i});
+    }
+    f.objects.push_back({"late", std::nullopt});
+    f.initial_level = f.scene->level();
+    return f;
+  }();
+  return built;
+}
+
+void check(bool condition, const char* what) {
+  if (!condition) {
+    std::fprintf(stderr, "fuzz_contact_service: %s\n", what);
+    std::abort();
+  }
+}
+
+std::string objectName(FuzzedDataProvider& input, const Fixture& f) {
+  switch (input.ConsumeIntegralInRange(0, 3)) {
+    case 0:
+      return "";
+    case 1:
+      return input.ConsumeRandomLengthString(16);
+    default:
+      return std::string(f.objects[input.ConsumeIntegralInRange<std::size_t>(0, f.objects.size() - 1)].name);
+  }
+}
+
+bool known(const Fixture& f, const std::string& name) {
+  if (name.empty()) return true;
+  for (const NamedObject& object : f.objects) {
+    if (object.name == name) return true;
+  }
+  return false;
+}
+
+void setLevel(FuzzedDataProvider& input, Fixture& f) {
+  SetLevel::Request request;
+  request.level = input.ConsumeIntegral<std::uint8_t>();
+  const int before = f.scene->level();
+  SetLevel::Response response;
+  answerSetLevel(*f.scene, request, response);
+  check(response.success == (request.level <= f.scene->maxLevel()), "set_level accepted wrongly");
+  check(f.scene->level() == (response.success ? request.level : before), "wrong level in force");
+  check(response.level == f.scene->level() && response.max_level == f.scene->maxLevel(),
+        "set_level reports a level not in force");
+  check(!response.message.empty(), "set_level said nothing");
+}
+
+void getContacts(FuzzedDataProvider& input, Fixture& f) {
+  GetContacts::Request request;
+  request.object_a = objectName(input, f);
+  request.object_b = objectName(input, f);
+  request.level = input.ConsumeBool() ? input.ConsumeIntegralInRange<std::int16_t>(-2, 20)
+                                      : input.ConsumeIntegral<std::int16_t>();
+  const int running = f.scene->level();
+  GetContacts::Response response;
+  answerGetContacts(*f.scene, f.objects, request, f.scratch, response);
+  const bool valid = known(f, request.object_a) && known(f, request.object_b) &&
+                     request.level >= -1 && request.level <= f.scene->maxLevel();
+  check(response.success == valid, "get_contacts accepted wrongly");
+  check(f.scene->level() == running, "get_contacts changed the running level");
+  check(!response.message.empty(), "get_contacts said nothing");
+  if (!response.success) {
+    check(response.contacts.contacts.empty(), "a refused query returned contacts");
+    return;
+  }
+  const int level = request.level == -1 ? running : request.level;
+  check(response.contacts.level == level, "contacts of another level");
+  for (const Contact& contact : response.contacts.contacts) {
+    check(request.object_a.empty() || contact.object_a == request.object_a ||
+              contact.object_b == request.object_a,
+          "a contact without object_a");
+    check(request.object_b.empty() || contact.object_a == request.object_b ||
+              contact.object_b == request.object_b,
+          "a contact without object_b");
+    check(contact.level <= level, "a contact below the level asked for");
+    const double length = std::sqrt(contact.normal.x * contact.normal.x +
+                                    contact.normal.y * contact.normal.y +
+                                    contact.normal.z * contact.normal.z);
+    check(std::abs(length - 1.0) < 1e-9, "a normal that is not unit length");
+    check(std::isfinite(contact.depth) && std::isfinite(contact.position.x) &&
+              std::isfinite(contact.position.y) && std::isfinite(contact.position.z),
+          "a non-finite contact");
+  }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t size) {
+  Fixture& f = fixture();
+  f.scene->setLevel(f.initial_level);
+  FuzzedDataProvider input(bytes, size);
+  while (input.remaining_bytes() > 0) {
+    if (input.ConsumeBool()) {
+      setLevel(input, f);
+    } else {
+      getContacts(input, f);
+    }
+  }
+  return 0;
+}
