@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bench/bench_common.h"
@@ -27,8 +28,13 @@ namespace {
 class SphereTreeMethod : public db::S1Method {
  public:
   SphereTreeMethod(const char* name, const dc::ShapeMatchingBody& a, const dc::ShapeMatchingBody& b,
-                   dc::SphereUpdate update, const dc::SphereTreeConfig& config, double contact_distance_m)
-      : name_(name), update_(update), a_(a, config), b_(b, config), contact_distance_m_(contact_distance_m) {}
+                   dc::SphereUpdate update, const dc::SphereTreeConfig& config,
+                   double contact_distance_m)
+      : name_(name),
+        update_(update),
+        a_(a, config),
+        b_(b, config),
+        contact_distance_m_(contact_distance_m) {}
 
   const char* name() const override { return name_; }
 
@@ -78,7 +84,8 @@ struct Totals {
   std::size_t pairs = 0;
 };
 
-std::vector<Eigen::Vector3d> shifted(std::vector<Eigen::Vector3d> points, const Eigen::Vector3d& by) {
+std::vector<Eigen::Vector3d> shifted(std::vector<Eigen::Vector3d> points,
+                                     const Eigen::Vector3d& by) {
   for (auto& p : points) p += by;
   return points;
 }
@@ -98,7 +105,8 @@ int main(int argc, char** argv) {
   config.stiffness = 0.3;
   // Two balls of radius 0.5 m pressed 2 cm into each other, both released from a bend.
   dc::ShapeMatchingBody a(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 1), config);
-  dc::ShapeMatchingBody b(shifted(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 2), {0.98, 0, 0}), config);
+  dc::ShapeMatchingBody b(shifted(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 2), {0.98, 0, 0}),
+                          config);
   for (dc::ShapeMatchingBody* body : {&a, &b}) {
     auto bent = body->restPositions();
     const double center_x = body == &a ? 0.0 : 0.98;
@@ -108,17 +116,16 @@ int main(int argc, char** argv) {
 
   const dc::SphereTreeConfig tree_config{2, 8};
   std::vector<std::unique_ptr<db::S1Method>> methods;
-  methods.push_back(std::make_unique<SphereTreeMethod>("deformation_update", a, b, dc::SphereUpdate::kDeformation,
-                                                       tree_config, contact_distance_m));
-  methods.push_back(std::make_unique<SphereTreeMethod>("exact_refit", a, b, dc::SphereUpdate::kExactRefit,
-                                                       tree_config, contact_distance_m));
-  methods.push_back(std::make_unique<SphereTreeMethod>("full_refit", a, b, dc::SphereUpdate::kBottomUpRefit,
-                                                       tree_config, contact_distance_m));
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "deformation_update", a, b, dc::SphereUpdate::kDeformation, tree_config, contact_distance_m));
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "exact_refit", a, b, dc::SphereUpdate::kExactRefit, tree_config, contact_distance_m));
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "full_refit", a, b, dc::SphereUpdate::kBottomUpRefit, tree_config, contact_distance_m));
   const std::size_t full_refit = 2;
-  methods.push_back(db::makeFclAabbMethod(a.positions(), b.positions(), contact_distance_m));
-  methods.push_back(db::makeFclObbrssMethod(a.positions(), b.positions(), contact_distance_m));
-  methods.push_back(db::makeBulletDbvtMethod(a.positions(), b.positions(), contact_distance_m));
-  methods.push_back(db::makePclKdTreeMethod(a.positions(), b.positions(), contact_distance_m));
+  for (auto& peer : db::makePeers(a.positions(), b.positions(), contact_distance_m)) {
+    methods.push_back(std::move(peer));
+  }
 
   std::vector<Totals> totals(methods.size());
   for (int s = 0; s < steps; ++s) {
@@ -134,30 +141,35 @@ int main(int argc, char** argv) {
       if (m == 0) {
         reference = pairs;
       } else if (pairs != reference) {
-        std::fprintf(stderr, "bench_collision: step %d: %s found %zu point pairs, %s %zu (or other ones)\n",
+        std::fprintf(stderr,
+                     "bench_collision: step %d: %s found %zu point pairs, %s %zu (or other ones)\n",
                      s, methods[m]->name(), pairs.size(), methods[0]->name(), reference.size());
         return 1;
       }
     }
   }
 
-  std::printf("S1: two quadratic balls of %zu points each (%zu in all), %d steps, contact distance "
-              "%.3f m; every method found the same %.1f point pairs per step\n\n",
-              each, 2 * each, steps, contact_distance_m, double(totals[0].pairs) / steps);
-  std::printf("| method | collision ms/step | / full refit | volumes updated/step |\n|---|---|---|---|\n");
+  std::printf(
+      "S1: two quadratic balls of %zu points each (%zu in all), %d steps, contact distance "
+      "%.3f m; every method found the same %.1f point pairs per step\n\n",
+      each, 2 * each, steps, contact_distance_m, double(totals[0].pairs) / steps);
+  std::printf(
+      "| method | collision ms/step | / full refit | volumes updated/step |\n|---|---|---|---|\n");
   const double full_refit_ms = totals[full_refit].ms / steps;
   for (std::size_t m = 0; m < methods.size(); ++m) {
     std::printf("| %s | %.3f | %.4f | %.0f |\n", methods[m]->name(), totals[m].ms / steps,
                 totals[m].ms / steps / full_refit_ms, double(totals[m].updated) / steps);
   }
   if (!results_dir.empty()) {
-    db::CsvAppender csv(results_dir + "/s1.csv", "points,method,spheres_updated,collision_ms,ratio_to_full_refit");
+    db::CsvAppender csv(results_dir + "/s1.csv",
+                        "points,method,spheres_updated,collision_ms,ratio_to_full_refit");
     for (std::size_t m = 0; m < methods.size(); ++m) {
       std::fprintf(csv.file(), "%zu,%s,%.0f,%.5f,%.5f\n", 2 * each, methods[m]->name(),
                    double(totals[m].updated) / steps, totals[m].ms / steps,
                    totals[m].ms / steps / full_refit_ms);
     }
-    db::CsvAppender pairs(results_dir + "/s1_pairs.csv", "points,steps,methods,point_pairs_per_step");
+    db::CsvAppender pairs(results_dir + "/s1_pairs.csv",
+                          "points,steps,methods,point_pairs_per_step");
     std::fprintf(pairs.file(), "%zu,%d,%zu,%.2f\n", 2 * each, steps, methods.size(),
                  double(totals[0].pairs) / steps);
   }

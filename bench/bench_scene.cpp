@@ -77,7 +77,8 @@ std::vector<Eigen::Vector3d> softPoints(const dc::Scene& scene) {
 /// state, with trees of the scene's configuration.
 double fullRefitMs(const dc::Scene& scene) {
   std::vector<dc::SphereTree> trees;
-  for (const std::size_t i : softObjects(scene)) trees.emplace_back(scene.body(i), scene.config().tree);
+  for (const std::size_t i : softObjects(scene))
+    trees.emplace_back(scene.body(i), scene.config().tree);
   constexpr int kRepeats = 20;
   const auto start = db::Clock::now();
   for (int r = 0; r < kRepeats; ++r) {
@@ -136,10 +137,11 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
   }
   speed_mps /= double(settled_points.size());
   {
-    db::CsvAppender state(results_dir + "/s2_state.csv",
-                          "soft_points,settle_cycles,cycles_per_level,mean_diameter_m,mean_point_speed_mps");
-    std::fprintf(state.file(), "%zu,%d,%d,%.5f,%.5f\n", settled_points.size(), settle, cycles, diameter_m,
-                 speed_mps);
+    db::CsvAppender state(
+        results_dir + "/s2_state.csv",
+        "soft_points,settle_cycles,cycles_per_level,mean_diameter_m,mean_point_speed_mps");
+    std::fprintf(state.file(), "%zu,%d,%d,%.5f,%.5f\n", settled_points.size(), settle, cycles,
+                 diameter_m, speed_mps);
   }
 
   std::vector<dc::SceneContact> fine, coarse;
@@ -165,25 +167,30 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
     means[level] = runCycles(*scene, cycles);
     const std::vector<Eigen::Vector3d> points = softPoints(*scene);
     double squared = 0.0;
-    for (std::size_t p = 0; p < points.size(); ++p) squared += (points[p] - reference_points[p]).squaredNorm();
+    for (std::size_t p = 0; p < points.size(); ++p)
+      squared += (points[p] - reference_points[p]).squaredNorm();
     rms_rel[level] = std::sqrt(squared / double(points.size())) / diameter_m;
   }
 
-  std::printf("S2 pile: %zu soft points, settled for %d cycles, then %d cycles per level; "
-              "mean object diameter %.4f m, mean point speed when settled %.3f m/s; full refit "
-              "baseline %.3f ms\n\n",
-              settled_points.size(), settle, cycles, diameter_m, speed_mps, baseline_ms);
-  std::printf("| level | contacts | detection ms | response ms | total ms | / baseline | coverage m | "
-              "rms rel |\n|---|---|---|---|---|---|---|---|\n");
-  db::CsvAppender csv(results_dir + "/s2.csv",
-                      "level,contacts,detection_ms,response_ms,total_ms,coverage_error_m,rms_error_rel");
+  std::printf(
+      "S2 pile: %zu soft points, settled for %d cycles, then %d cycles per level; "
+      "mean object diameter %.4f m, mean point speed when settled %.3f m/s; full refit "
+      "baseline %.3f ms\n\n",
+      settled_points.size(), settle, cycles, diameter_m, speed_mps, baseline_ms);
+  std::printf(
+      "| level | contacts | detection ms | response ms | total ms | / baseline | coverage m | "
+      "rms rel |\n|---|---|---|---|---|---|---|---|\n");
+  db::CsvAppender csv(
+      results_dir + "/s2.csv",
+      "level,contacts,detection_ms,response_ms,total_ms,coverage_error_m,rms_error_rel");
   for (int level = 1; level <= finest; ++level) {
     const Means& m = means[level];
     const double total = m.detection_ms + m.response_ms;
     std::printf("| %d | %.0f | %.3f | %.3f | %.3f | %.3f | %.4f | %.5f |\n", level, m.contacts,
-                m.detection_ms, m.response_ms, total, total / baseline_ms, coverage[level], rms_rel[level]);
-    std::fprintf(csv.file(), "%d,%.1f,%.5f,%.5f,%.5f,%.6f,%.6f\n", level, m.contacts, m.detection_ms,
-                 m.response_ms, total, coverage[level], rms_rel[level]);
+                m.detection_ms, m.response_ms, total, total / baseline_ms, coverage[level],
+                rms_rel[level]);
+    std::fprintf(csv.file(), "%d,%.1f,%.5f,%.5f,%.5f,%.6f,%.6f\n", level, m.contacts,
+                 m.detection_ms, m.response_ms, total, coverage[level], rms_rel[level]);
   }
   return 0;
 }
@@ -213,9 +220,10 @@ int runS3(const std::string& results_dir, int settle, int cycles) {
   }
   std::size_t points = 0;
   for (std::size_t i = 0; i < scene->objectCount(); ++i) points += scene->body(i).pointCount();
-  std::printf("S3 three objects: %zu points, settled for %d cycles, mean of %d, %.0f contacts; "
-              "full refit baseline %.3f ms\n\n| stage | ms | / baseline |\n|---|---|---|\n",
-              points, settle, cycles, m.contacts, baseline_ms);
+  std::printf(
+      "S3 three objects: %zu points, settled for %d cycles, mean of %d, %.0f contacts; "
+      "full refit baseline %.3f ms\n\n| stage | ms | / baseline |\n|---|---|---|\n",
+      points, settle, cycles, m.contacts, baseline_ms);
   db::CsvAppender csv(results_dir + "/s3.csv", "stage,ms");
   const std::pair<const char*, double> stages[] = {{"deformation", m.shape_matching_ms},
                                                    {"detection", m.detection_ms},
@@ -243,9 +251,11 @@ int runMemory(const std::string& name, const std::string& results_dir, int cycle
   std::size_t points = 0;
   for (std::size_t i = 0; i < scene->objectCount(); ++i) points += scene->body(i).pointCount();
   const double per_point = double(peak - before) / double(points);
-  std::printf("%s: %zu points, peak resident %.1f MB (%.1f MB before the scene), %.0f bytes per point\n",
-              name.c_str(), points, peak / 1e6, before / 1e6, per_point);
-  db::CsvAppender csv(results_dir + "/memory.csv", "scene,points,rss_before_bytes,peak_rss_bytes,bytes_per_point");
+  std::printf(
+      "%s: %zu points, peak resident %.1f MB (%.1f MB before the scene), %.0f bytes per point\n",
+      name.c_str(), points, peak / 1e6, before / 1e6, per_point);
+  db::CsvAppender csv(results_dir + "/memory.csv",
+                      "scene,points,rss_before_bytes,peak_rss_bytes,bytes_per_point");
   std::fprintf(csv.file(), "%s,%zu,%ld,%ld,%.0f\n", name.c_str(), points, before, peak, per_point);
   return 0;
 }
@@ -254,13 +264,16 @@ int runMemory(const std::string& name, const std::string& results_dir, int cycle
 
 int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
-  const auto intArg = [&](int index, int fallback) { return argc > index ? std::atoi(argv[index]) : fallback; };
+  const auto intArg = [&](int index, int fallback) {
+    return argc > index ? std::atoi(argv[index]) : fallback;
+  };
   if (mode == "s2" && argc > 2) return runS2(argv[2], intArg(3, 150), intArg(4, 100));
   if (mode == "s3" && argc > 2) return runS3(argv[2], intArg(3, 150), intArg(4, 100));
   if (mode == "memory" && argc > 3) return runMemory(argv[2], argv[3], intArg(4, 150));
-  std::fprintf(stderr,
-               "usage: bench_scene s2 results_dir [settle=150] [cycles=100]\n"
-               "       bench_scene s3 results_dir [settle=150] [cycles=100]\n"
-               "       bench_scene memory two_objects|pile|three_objects results_dir [cycles=150]\n");
+  std::fprintf(
+      stderr,
+      "usage: bench_scene s2 results_dir [settle=150] [cycles=100]\n"
+      "       bench_scene s3 results_dir [settle=150] [cycles=100]\n"
+      "       bench_scene memory two_objects|pile|three_objects results_dir [cycles=150]\n");
   return 2;
 }

@@ -38,23 +38,15 @@ class S1Method {
   virtual std::vector<PointPair> pointPairs() const = 0;
 };
 
-/// The peers, over the bodies' current points (`a` and `b` keep their size and address).
-/// FCL: a BVHModel point cloud per object (AABB or OBBRSS), refitted bottom-up each step;
-/// counts every BV node of both models.
-std::unique_ptr<S1Method> makeFclAabbMethod(const std::vector<Eigen::Vector3d>& a,
-                                            const std::vector<Eigen::Vector3d>& b,
-                                            double contact_distance_m);
-std::unique_ptr<S1Method> makeFclObbrssMethod(const std::vector<Eigen::Vector3d>& a,
-                                              const std::vector<Eigen::Vector3d>& b,
-                                              double contact_distance_m);
-/// Bullet: a btDbvt per object with one leaf per point; counts the leaves reinserted.
-std::unique_ptr<S1Method> makeBulletDbvtMethod(const std::vector<Eigen::Vector3d>& a,
-                                               const std::vector<Eigen::Vector3d>& b,
-                                               double contact_distance_m);
-/// PCL: a KdTreeFLANN over b rebuilt each step, a radius search per point of a; counts the
-/// points indexed.
-std::unique_ptr<S1Method> makePclKdTreeMethod(const std::vector<Eigen::Vector3d>& a,
-                                              const std::vector<Eigen::Vector3d>& b,
-                                              double contact_distance_m);
+/// The peers, over the bodies' current points (`a` and `b` keep their size and address):
+///   fcl_aabb, fcl_obbrss - FCL BVHModel point clouds refitted each step; count every BV
+///                          node of both models
+///   bullet_dbvt          - a btDbvt per object, a leaf per point; counts leaves reinserted
+///   pcl_kdtree           - a KdTreeFLANN over b rebuilt each step, a radius search per
+///                          point of a; counts the points indexed
+/// (s1_peers.cpp says how each is used).
+std::vector<std::unique_ptr<S1Method>> makePeers(const std::vector<Eigen::Vector3d>& a,
+                                                 const std::vector<Eigen::Vector3d>& b,
+                                                 double contact_distance_m);
 
 }  // namespace deformable_collision::bench

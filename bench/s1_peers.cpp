@@ -1,6 +1,5 @@
 // The peers of S1: what a user would pick instead of our sphere trees to find the point
 // pairs of two deforming point clouds closer than the contact distance.
-#include <btBulletCollisionCommon.h>
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
 #include <fcl/fcl.h>
 #include <pcl/kdtree/kdtree_flann.h>
@@ -21,8 +20,8 @@ using Points = std::vector<Eigen::Vector3d>;
 
 /// Whether two FCL bounding volumes may hold points closer than `distance`, by FCL's own
 /// tests: AABB::distance for boxes; for OBBRSS the OBB overlap test that FCL's collide()
-/// uses, on boxes grown by half the distance (its RSS distance is exact but makes the
-/// query about 300 times slower here).
+/// uses, on boxes grown by half the distance (OBBRSS::distance, the RSS distance, made
+/// the query over a hundred times slower here).
 bool mayBeCloser(const fcl::AABBd& a, const fcl::AABBd& b, double distance) {
   return a.distance(b) < distance;
 }
@@ -37,19 +36,24 @@ bool mayBeCloser(const fcl::OBBRSSd& a, const fcl::OBBRSSd& b, double distance) 
 /// FCL's BVHModel over each cloud, brought up to the new points through beginUpdateModel /
 /// updateSubModel / endUpdateModel: a bottom-up refit for AABB; for OBBRSS a top-down one
 /// (each node fitted to its points, O(n log n)), because FCL 0.7.0's bottom-up OBBRSS
-/// refit leaves boxes that do not enclose their points (OBB merge_smalldist updates the
-/// minimum only in an `else`), which missed pairs here. FCL's collide() and distance() accept only triangle
-/// models (they return nothing for BVH_MODEL_POINTCLOUD, and distance() gives one closest
-/// pair, not all pairs within a distance), so the query is a descent over FCL's nodes that
-/// follows FCL's own traversal: FCL's BV test (mayBeCloser), the larger node split first
-/// (BV::size), one point per leaf.
+/// refit leaves boxes that do not enclose their points (OBB merge_smalldist records a
+/// vertex as the minimum only when it is not a new maximum), which missed pairs here.
+/// FCL's collide() and distance() accept only triangle models (they return nothing for
+/// BVH_MODEL_POINTCLOUD, and distance() gives one closest pair, not all pairs within a
+/// distance), so the query is a descent over FCL's nodes that follows FCL's own traversal:
+/// FCL's BV test (mayBeCloser), the larger node split first (BV::size), a point per leaf.
 template <class BV>
 class FclMethod : public S1Method {
  public:
-  FclMethod(const char* name, bool bottom_up, const Points& a, const Points& b, double contact_distance_m)
-      : name_(name), bottom_up_(bottom_up), points_{&a, &b}, contact_distance_m_(contact_distance_m) {
+  FclMethod(const char* name, bool bottom_up, const Points& a, const Points& b,
+            double contact_distance_m)
+      : name_(name),
+        bottom_up_(bottom_up),
+        points_{&a, &b},
+        contact_distance_m_(contact_distance_m) {
     for (int k = 0; k < 2; ++k) {
-      if (models_[k].beginModel() != fcl::BVH_OK || models_[k].addSubModel(*points_[k]) != fcl::BVH_OK ||
+      if (models_[k].beginModel() != fcl::BVH_OK ||
+          models_[k].addSubModel(*points_[k]) != fcl::BVH_OK ||
           models_[k].endModel() != fcl::BVH_OK) {
         throw std::runtime_error(std::string("FCL could not build the ") + name + " model");
       }
@@ -77,7 +81,8 @@ class FclMethod : public S1Method {
       if (na.isLeaf() && nb.isLeaf()) {
         const auto pa = static_cast<std::uint32_t>(na.primitiveId());
         const auto pb = static_cast<std::uint32_t>(nb.primitiveId());
-        if (closerThan((*points_[0])[pa], (*points_[1])[pb], contact_distance_m_)) pairs_.emplace_back(pa, pb);
+        if (closerThan((*points_[0])[pa], (*points_[1])[pb], contact_distance_m_))
+          pairs_.emplace_back(pa, pb);
       } else if (nb.isLeaf() || (!na.isLeaf() && na.bv.size() > nb.bv.size())) {
         stack_.push_back({na.leftChild(), j});
         stack_.push_back({na.rightChild(), j});
@@ -127,7 +132,8 @@ class BulletDbvtMethod : public S1Method {
     for (int k = 0; k < 2; ++k) {
       for (std::size_t p = 0; p < leaves_[k].size(); ++p) {
         btDbvtVolume box = pointBox((*points_[k])[p]);
-        reinserted += trees_[k].update(leaves_[k][p], box, btScalar(kFatteningFactor * contact_distance_m_));
+        reinserted +=
+            trees_[k].update(leaves_[k][p], box, btScalar(kFatteningFactor * contact_distance_m_));
       }
       trees_[k].optimizeIncremental(1);
     }
@@ -150,7 +156,8 @@ class BulletDbvtMethod : public S1Method {
     void Process(const btDbvtNode* na, const btDbvtNode* nb) override {
       const auto pa = static_cast<std::uint32_t>(na->dataAsInt);
       const auto pb = static_cast<std::uint32_t>(nb->dataAsInt);
-      if (closerThan((*method.points_[0])[pa], (*method.points_[1])[pb], method.contact_distance_m_)) {
+      if (closerThan((*method.points_[0])[pa], (*method.points_[1])[pb],
+                     method.contact_distance_m_)) {
         method.pairs_.emplace_back(pa, pb);
       }
     }
@@ -158,7 +165,8 @@ class BulletDbvtMethod : public S1Method {
   };
 
   btDbvtVolume pointBox(const Eigen::Vector3d& p) const {
-    return btDbvtVolume::FromCR(btVector3(p.x(), p.y(), p.z()), btScalar(0.5 * contact_distance_m_));
+    return btDbvtVolume::FromCR(btVector3(p.x(), p.y(), p.z()),
+                                btScalar(0.5 * contact_distance_m_));
   }
 
   std::array<const Points*, 2> points_;
@@ -177,7 +185,10 @@ class BulletDbvtMethod : public S1Method {
 class PclKdTreeMethod : public S1Method {
  public:
   PclKdTreeMethod(const Points& a, const Points& b, double contact_distance_m)
-      : a_(a), b_(b), contact_distance_m_(contact_distance_m), cloud_b_(new pcl::PointCloud<pcl::PointXYZ>) {
+      : a_(a),
+        b_(b),
+        contact_distance_m_(contact_distance_m),
+        cloud_b_(new pcl::PointCloud<pcl::PointXYZ>) {
     cloud_b_->resize(b_.size());
     tree_.setSortedResults(false);
   }
@@ -223,20 +234,16 @@ class PclKdTreeMethod : public S1Method {
 
 }  // namespace
 
-std::unique_ptr<S1Method> makeFclAabbMethod(const Points& a, const Points& b, double contact_distance_m) {
-  return std::make_unique<FclMethod<fcl::AABBd>>("fcl_aabb", true, a, b, contact_distance_m);
-}
-
-std::unique_ptr<S1Method> makeFclObbrssMethod(const Points& a, const Points& b, double contact_distance_m) {
-  return std::make_unique<FclMethod<fcl::OBBRSSd>>("fcl_obbrss", false, a, b, contact_distance_m);
-}
-
-std::unique_ptr<S1Method> makeBulletDbvtMethod(const Points& a, const Points& b, double contact_distance_m) {
-  return std::make_unique<BulletDbvtMethod>(a, b, contact_distance_m);
-}
-
-std::unique_ptr<S1Method> makePclKdTreeMethod(const Points& a, const Points& b, double contact_distance_m) {
-  return std::make_unique<PclKdTreeMethod>(a, b, contact_distance_m);
+std::vector<std::unique_ptr<S1Method>> makePeers(const Points& a, const Points& b,
+                                                 double contact_distance_m) {
+  std::vector<std::unique_ptr<S1Method>> peers;
+  peers.push_back(
+      std::make_unique<FclMethod<fcl::AABBd>>("fcl_aabb", true, a, b, contact_distance_m));
+  peers.push_back(
+      std::make_unique<FclMethod<fcl::OBBRSSd>>("fcl_obbrss", false, a, b, contact_distance_m));
+  peers.push_back(std::make_unique<BulletDbvtMethod>(a, b, contact_distance_m));
+  peers.push_back(std::make_unique<PclKdTreeMethod>(a, b, contact_distance_m));
+  return peers;
 }
 
 }  // namespace deformable_collision::bench
