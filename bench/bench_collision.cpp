@@ -5,8 +5,9 @@
 //   full_refit         - our every node refitted bottom-up, then the same query
 // and by the peers of s1_methods.h (FCL, Bullet, PCL). Every method finds the point pairs
 // closer than the contact distance; the run fails if any finds other pairs than ours.
-// Usage: bench_collision [points_in_all=160000] [steps=20] [results_dir]
-// With results_dir, appends to results_dir/s1.csv and results_dir/s1_pairs.csv.
+// Usage: bench_collision [points_in_all=160000] [steps=20] [results_dir] [contact_distance_m=0.005]
+// With results_dir (not empty), appends to results_dir/s1.csv and results_dir/s1_pairs.csv.
+// A larger contact distance gives many more pairs to cross-check the peers on.
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -96,7 +97,7 @@ int main(int argc, char** argv) {
   const std::size_t points = argc > 1 ? std::strtoul(argv[1], nullptr, 10) : 160000;
   const int steps = argc > 2 ? std::atoi(argv[2]) : 20;
   const std::string results_dir = argc > 3 ? argv[3] : "";
-  const double contact_distance_m = 0.005;
+  const double contact_distance_m = argc > 4 ? std::atof(argv[4]) : 0.005;
   const std::size_t each = points / 2;
 
   dc::ShapeMatchingConfig config;
