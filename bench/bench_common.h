@@ -1,5 +1,5 @@
 // What the benchmark executables share: a steady clock, peak memory, and CSV files that
-// several processes append rows to (bench/run_benchmarks runs one scene per process).
+// several processes append rows to (scripts/run_benchmarks runs one scene per process).
 #pragma once
 
 #include <sys/resource.h>

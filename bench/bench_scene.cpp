@@ -1,4 +1,4 @@
-// The built-in scenes of the paper's section 7, one scene per process (bench/run_benchmarks
+// The built-in scenes of the paper's section 7, one scene per process (scripts/run_benchmarks
 // runs each, so peak memory is per scene); rows are appended to CSV files in results_dir.
 //   s2 results_dir [settle=150] [cycles=100]
 //     The pile (300 soft objects, 131k points) settled at the finest level, then `cycles`
@@ -25,6 +25,7 @@
 #include <cstdlib>
 #include <limits>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
