@@ -1,38 +1,92 @@
-// Collision stage of two quadratic objects touching at a patch, per step, with three ways
-// of getting the spheres, all on the same deforming points in the same run:
-//   deformation  - spheres from the shape-matching matrices, lazily (the paper's update)
-//   exact_refit  - smallest enclosing sphere of the current points of each visited node
-//   bottom_up    - every node refitted bottom-up, then the same query
-// Usage: bench_collision [points_per_object=80000] [steps=20]
-#include <algorithm>
-#include <chrono>
+// S1: the collision stage of two quadratic objects touching at a patch, per step, on the
+// same deforming points in the same run, by
+//   deformation_update - our spheres from the shape-matching matrices, lazily (the paper)
+//   exact_refit        - our smallest enclosing sphere of the points of each visited node
+//   full_refit         - our every node refitted bottom-up, then the same query
+// and by the peers of s1_methods.h (FCL, Bullet, PCL). Every method finds the point pairs
+// closer than the contact distance; the run fails if any finds other pairs than ours.
+// Usage: bench_collision [points_in_all=160000] [steps=20] [results_dir] [contact_distance_m=0.005]
+// With results_dir (not empty), appends to results_dir/s1.csv and results_dir/s1_pairs.csv.
+// A larger contact distance gives many more pairs to cross-check the peers on.
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "bench/bench_common.h"
+#include "bench/s1_methods.h"
 #include "deformable_collision/core/collision_query.h"
 #include "deformable_collision/core/shapes.h"
 
 namespace dc = deformable_collision;
+namespace db = deformable_collision::bench;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+/// Our sphere trees over both bodies, queried to the leaves. Counts the spheres computed.
+class SphereTreeMethod : public db::S1Method {
+ public:
+  SphereTreeMethod(const char* name, const dc::ShapeMatchingBody& a, const dc::ShapeMatchingBody& b,
+                   dc::SphereUpdate update, const dc::SphereTreeConfig& config,
+                   double contact_distance_m)
+      : name_(name),
+        update_(update),
+        a_(a, config),
+        b_(b, config),
+        contact_distance_m_(contact_distance_m) {}
 
-double millisecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
+  const char* name() const override { return name_; }
 
-struct MethodTotals {
-  double update_ms = 0.0;  // bottom-up: the refit alone
-  double stage_ms = 0.0;   // update + query to the leaves
-  std::size_t spheres_updated = 0;
-  std::size_t max_spheres_updated = 0;
-  std::size_t contacts = 0;
+  std::size_t step() override {
+    contacts_.clear();
+    a_.beginCycle(update_);
+    b_.beginCycle(update_);
+    query_.collide(a_, b_, kLeaves, contact_distance_m_, contacts_, counters_);
+    return a_.counters().spheres_updated + b_.counters().spheres_updated;
+  }
+
+  /// The point pairs of the contacts' leaves; a point shared by overlapping clusters sits
+  /// in several leaves, hence sortedUnique.
+  std::vector<db::PointPair> pointPairs() const override {
+    std::vector<db::PointPair> pairs;
+    const auto& pa = a_.body().positions();
+    const auto& pb = b_.body().positions();
+    for (const dc::SphereContact& c : contacts_) {
+      const dc::SphereNode& na = a_.node(c.node_a);
+      const dc::SphereNode& nb = b_.node(c.node_b);
+      for (std::uint32_t s = na.first_point; s < na.first_point + na.point_count; ++s) {
+        for (std::uint32_t t = nb.first_point; t < nb.first_point + nb.point_count; ++t) {
+          const std::uint32_t i = a_.pointIndices()[s];
+          const std::uint32_t j = b_.pointIndices()[t];
+          if (db::closerThan(pa[i], pb[j], contact_distance_m_)) pairs.emplace_back(i, j);
+        }
+      }
+    }
+    return db::sortedUnique(std::move(pairs));
+  }
+
+ private:
+  static constexpr int kLeaves = 1000;  // deeper than any tree: the query tests points
+
+  const char* name_;
+  dc::SphereUpdate update_;
+  dc::SphereTree a_, b_;
+  double contact_distance_m_;
+  dc::HierarchyQuery query_;
+  dc::QueryCounters counters_;
+  std::vector<dc::SphereContact> contacts_;
 };
 
-std::vector<Eigen::Vector3d> shifted(std::vector<Eigen::Vector3d> points, const Eigen::Vector3d& by) {
+struct Totals {
+  double ms = 0.0;
+  std::size_t updated = 0;
+  std::size_t pairs = 0;
+};
+
+std::vector<Eigen::Vector3d> shifted(std::vector<Eigen::Vector3d> points,
+                                     const Eigen::Vector3d& by) {
   for (auto& p : points) p += by;
   return points;
 }
@@ -40,17 +94,19 @@ std::vector<Eigen::Vector3d> shifted(std::vector<Eigen::Vector3d> points, const 
 }  // namespace
 
 int main(int argc, char** argv) {
-  const std::size_t points = argc > 1 ? std::strtoul(argv[1], nullptr, 10) : 80000;
+  const std::size_t points = argc > 1 ? std::strtoul(argv[1], nullptr, 10) : 160000;
   const int steps = argc > 2 ? std::atoi(argv[2]) : 20;
-  const double contact_distance_m = 0.005;
+  const std::string results_dir = argc > 3 ? argv[3] : "";
+  const double contact_distance_m = argc > 4 ? std::atof(argv[4]) : 0.005;
+  const std::size_t each = points / 2;
 
   dc::ShapeMatchingConfig config;
   config.mode = dc::DeformationMode::kQuadratic;
   config.clusters = 4;
   config.stiffness = 0.3;
   // Two balls of radius 0.5 m pressed 2 cm into each other, both released from a bend.
-  dc::ShapeMatchingBody a(dc::sampleEllipsoid(points, {0.5, 0.5, 0.5}, 1), config);
-  dc::ShapeMatchingBody b(shifted(dc::sampleEllipsoid(points, {0.5, 0.5, 0.5}, 2), {0.98, 0, 0}),
+  dc::ShapeMatchingBody a(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 1), config);
+  dc::ShapeMatchingBody b(shifted(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 2), {0.98, 0, 0}),
                           config);
   for (dc::ShapeMatchingBody* body : {&a, &b}) {
     auto bent = body->restPositions();
@@ -58,57 +114,65 @@ int main(int argc, char** argv) {
     for (auto& p : bent) p.z() += 0.05 * (p.y() * p.y() - (p.x() - center_x) * (p.x() - center_x));
     body->setPositions(bent);
   }
+
   const dc::SphereTreeConfig tree_config{2, 8};
-  dc::SphereTree deformation_a(a, tree_config), deformation_b(b, tree_config);
-  dc::SphereTree exact_a(a, tree_config), exact_b(b, tree_config);
-  dc::SphereTree bottom_up_a(a, tree_config), bottom_up_b(b, tree_config);
-  dc::HierarchyQuery query;
-  std::vector<dc::SphereContact> contacts;
-  contacts.reserve(1 << 16);
+  std::vector<std::unique_ptr<db::S1Method>> methods;
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "deformation_update", a, b, dc::SphereUpdate::kDeformation, tree_config, contact_distance_m));
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "exact_refit", a, b, dc::SphereUpdate::kExactRefit, tree_config, contact_distance_m));
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "full_refit", a, b, dc::SphereUpdate::kBottomUpRefit, tree_config, contact_distance_m));
+  const std::size_t full_refit = 2;
+  for (auto& peer : db::makePeers(a.positions(), b.positions(), contact_distance_m)) {
+    methods.push_back(std::move(peer));
+  }
 
-  const auto run = [&](dc::SphereTree& ta, dc::SphereTree& tb, dc::SphereUpdate method,
-                       MethodTotals& totals) {
-    contacts.clear();
-    dc::QueryCounters counters;
-    const auto start = Clock::now();
-    ta.beginCycle(method);
-    tb.beginCycle(method);
-    totals.update_ms += method == dc::SphereUpdate::kBottomUpRefit ? millisecondsSince(start) : 0.0;
-    query.collide(ta, tb, 1000, contact_distance_m, contacts, counters);
-    totals.stage_ms += millisecondsSince(start);
-    const std::size_t updated = ta.counters().spheres_updated + tb.counters().spheres_updated;
-    totals.spheres_updated += updated;
-    totals.max_spheres_updated = std::max(totals.max_spheres_updated, updated);
-    totals.contacts += contacts.size();
-  };
-
-  MethodTotals deformation, exact, bottom_up;
+  std::vector<Totals> totals(methods.size());
   for (int s = 0; s < steps; ++s) {
     a.step(0.01, Eigen::Vector3d::Zero());
     b.step(0.01, Eigen::Vector3d::Zero());
-    run(deformation_a, deformation_b, dc::SphereUpdate::kDeformation, deformation);
-    run(exact_a, exact_b, dc::SphereUpdate::kExactRefit, exact);
-    run(bottom_up_a, bottom_up_b, dc::SphereUpdate::kBottomUpRefit, bottom_up);
+    std::vector<db::PointPair> reference;
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      const auto start = db::Clock::now();
+      totals[m].updated += methods[m]->step();
+      totals[m].ms += db::millisecondsSince(start);
+      const std::vector<db::PointPair> pairs = methods[m]->pointPairs();
+      totals[m].pairs += pairs.size();
+      if (m == 0) {
+        reference = pairs;
+      } else if (pairs != reference) {
+        std::fprintf(stderr,
+                     "bench_collision: step %d: %s found %zu point pairs, %s %zu (or other ones)\n",
+                     s, methods[m]->name(), pairs.size(), methods[0]->name(), reference.size());
+        return 1;
+      }
+    }
   }
 
-  const std::size_t nodes = deformation_a.nodeCount() + deformation_b.nodeCount();
-  std::printf("two quadratic objects of %zu points (%zu nodes in both trees), %d steps, "
-              "contact distance %.3f m\n\n",
-              points, nodes, steps, contact_distance_m);
-  std::printf("| method | stage ms/step | of bottom-up refit | spheres updated/step | max | "
-              "leaf contacts/step |\n|---|---|---|---|---|---|\n");
-  const auto row = [&](const char* name, const MethodTotals& t) {
-    std::printf("| %s | %.3f | %.3f | %.0f | %zu | %.0f |\n", name, t.stage_ms / steps,
-                t.stage_ms / bottom_up.update_ms, double(t.spheres_updated) / steps,
-                t.max_spheres_updated, double(t.contacts) / steps);
-  };
-  row("deformation", deformation);
-  row("exact_refit", exact);
-  row("bottom_up", bottom_up);
-  std::printf("\nbottom-up refit alone: %.3f ms/step\n", bottom_up.update_ms / steps);
-  std::printf("deformation stage / bottom-up refit: %.3f (target <= 0.10)\n",
-              deformation.stage_ms / bottom_up.update_ms);
-  std::printf("spheres updated, deformation / exact refit: %.3f (target <= 1.05)\n",
-              double(deformation.spheres_updated) / double(exact.spheres_updated));
+  std::printf(
+      "S1: two quadratic balls of %zu points each (%zu in all), %d steps, contact distance "
+      "%.3f m; every method found the same %.1f point pairs per step\n\n",
+      each, 2 * each, steps, contact_distance_m, double(totals[0].pairs) / steps);
+  std::printf(
+      "| method | collision ms/step | / full refit | volumes updated/step |\n|---|---|---|---|\n");
+  const double full_refit_ms = totals[full_refit].ms / steps;
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::printf("| %s | %.3f | %.4f | %.0f |\n", methods[m]->name(), totals[m].ms / steps,
+                totals[m].ms / steps / full_refit_ms, double(totals[m].updated) / steps);
+  }
+  if (!results_dir.empty()) {
+    db::CsvAppender csv(results_dir + "/s1.csv",
+                        "points,method,spheres_updated,collision_ms,ratio_to_full_refit");
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      std::fprintf(csv.file(), "%zu,%s,%.0f,%.5f,%.5f\n", 2 * each, methods[m]->name(),
+                   double(totals[m].updated) / steps, totals[m].ms / steps,
+                   totals[m].ms / steps / full_refit_ms);
+    }
+    db::CsvAppender pairs(results_dir + "/s1_pairs.csv",
+                          "points,steps,methods,point_pairs_per_step");
+    std::fprintf(pairs.file(), "%zu,%d,%zu,%.2f\n", 2 * each, steps, methods.size(),
+                 double(totals[0].pairs) / steps);
+  }
   return 0;
 }

@@ -1,54 +1,280 @@
-// The cycle of built-in scenes stage by stage, on one core (the paper's section 7):
-//   S2 (pile: 300 soft objects, 131k points) at every level, after the pile has formed;
-//   S3 (three objects, 19k points) at the finest level.
-// Usage: bench_scene [settle_cycles=150] [measured_cycles=20]
+// The built-in scenes of the paper's section 7, one scene per process (scripts/run_benchmarks
+// runs each, so peak memory is per scene); rows are appended to CSV files in results_dir.
+//   s2 results_dir [settle=150] [cycles=100]
+//     The pile (300 soft objects, 131k points) settled at the finest level, then `cycles`
+//     cycles at each level from 1 to the finest, each from the same settled state (rebuilt
+//     with the same seeds and checked equal): contacts, detection, response, and the error
+//     against the finest level: (i) coverage, the largest distance from a finest-level
+//     contact of the settled state to the nearest contact of the same object pair at this
+//     level; (ii) the RMS deviation of the soft objects' points from the finest-level run
+//     after the cycles, over their mean diameter. -> s2.csv, s2_state.csv, baselines.csv
+//   s3 results_dir [settle=150] [cycles=100]
+//     Three objects (19k points) at the finest level, stage by stage, with the conversion
+//     of every object's points to a PointCloud2 as the node publishes them. -> s3.csv,
+//     baselines.csv
+//   memory scene results_dir [cycles=150]
+//     Peak resident memory of a built-in scene (two_objects at 160k points, as S1's
+//     largest, or pile, three_objects at their default count) -> memory.csv
+// The baseline of a scene's times: a full bottom-up refit of its soft objects' hierarchies
+// on the same state, in the same process.
+#include <sensor_msgs/PointCloud2.h>
+
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
 
+#include "bench/bench_common.h"
+#include "deformable_collision/core/bounding_sphere.h"
 #include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace dc = deformable_collision;
+namespace db = deformable_collision::bench;
 
 namespace {
 
-struct Figures {
-  double shape_matching_ms = 0, detection_ms = 0, response_ms = 0, contacts = 0;
+struct Means {
+  double contacts = 0, shape_matching_ms = 0, detection_ms = 0, response_ms = 0;
 };
 
-Figures run(dc::DemoScene kind, int level, int settle, int measured) {
-  dc::SceneConfig config;
-  config.level = level;
-  auto scene = dc::makeDemoScene(kind, 0, config);
-  for (int c = 0; c < settle; ++c) scene->cycle();
-  Figures f;
-  for (int c = 0; c < measured; ++c) {
-    scene->cycle();
-    const auto& s = scene->stats();
-    f.shape_matching_ms += s.shape_matching_ms / measured;
-    f.detection_ms += s.detection_ms / measured;
-    f.response_ms += s.response_ms / measured;
-    f.contacts += double(s.contacts) / measured;
+/// Runs `cycles` cycles and returns the means of their stats.
+Means runCycles(dc::Scene& scene, int cycles) {
+  Means m;
+  for (int c = 0; c < cycles; ++c) {
+    scene.cycle();
+    const dc::CycleStats& s = scene.stats();
+    m.contacts += double(s.contacts) / cycles;
+    m.shape_matching_ms += s.shape_matching_ms / cycles;
+    m.detection_ms += s.detection_ms / cycles;
+    m.response_ms += s.response_ms / cycles;
   }
-  return f;
+  return m;
+}
+
+std::vector<std::size_t> softObjects(const dc::Scene& scene) {
+  std::vector<std::size_t> soft;
+  for (std::size_t i = 0; i < scene.objectCount(); ++i) {
+    if (scene.objectConfig(i).kind == dc::ObjectKind::kDynamic) soft.push_back(i);
+  }
+  return soft;
+}
+
+std::vector<Eigen::Vector3d> softPoints(const dc::Scene& scene) {
+  std::vector<Eigen::Vector3d> points;
+  for (const std::size_t i : softObjects(scene)) {
+    const auto& p = scene.body(i).positions();
+    points.insert(points.end(), p.begin(), p.end());
+  }
+  return points;
+}
+
+/// Mean time of a full bottom-up refit of every soft object's hierarchy on the current
+/// state, with trees of the scene's configuration.
+double fullRefitMs(const dc::Scene& scene) {
+  std::vector<dc::SphereTree> trees;
+  for (const std::size_t i : softObjects(scene))
+    trees.emplace_back(scene.body(i), scene.config().tree);
+  constexpr int kRepeats = 20;
+  const auto start = db::Clock::now();
+  for (int r = 0; r < kRepeats; ++r) {
+    for (dc::SphereTree& tree : trees) tree.beginCycle(dc::SphereUpdate::kBottomUpRefit);
+  }
+  return db::millisecondsSince(start) / kRepeats;
+}
+
+void appendBaseline(const std::string& results_dir, const char* scene, double ms) {
+  db::CsvAppender csv(results_dir + "/baselines.csv", "scene,baseline,ms");
+  std::fprintf(csv.file(), "%s,full_bottom_up_refit,%.5f\n", scene, ms);
+}
+
+std::unique_ptr<dc::Scene> settled(dc::DemoScene kind, int settle) {
+  auto scene = dc::makeDemoScene(kind);
+  for (int c = 0; c < settle; ++c) scene->cycle();
+  return scene;
+}
+
+/// The largest distance from a contact at `fine` to the nearest contact of the same object
+/// pair at `coarse`; infinite if a pair has none there.
+double coverageError(const std::vector<dc::SceneContact>& fine,
+                     const std::vector<dc::SceneContact>& coarse) {
+  std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<Eigen::Vector3d>> by_pair;
+  for (const dc::SceneContact& c : coarse) {
+    by_pair[std::minmax(c.object_a, c.object_b)].push_back(c.contact.position);
+  }
+  double worst = 0.0;
+  for (const dc::SceneContact& c : fine) {
+    const auto found = by_pair.find(std::minmax(c.object_a, c.object_b));
+    if (found == by_pair.end()) return std::numeric_limits<double>::infinity();
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p : found->second) {
+      nearest = std::min(nearest, (p - c.contact.position).squaredNorm());
+    }
+    worst = std::max(worst, std::sqrt(nearest));
+  }
+  return worst;
+}
+
+int runS2(const std::string& results_dir, int settle, int cycles) {
+  auto reference = settled(dc::DemoScene::kPile, settle);
+  const int finest = reference->maxLevel();
+  const std::vector<Eigen::Vector3d> settled_points = softPoints(*reference);
+  double diameter_m = 0.0;
+  for (const std::size_t i : softObjects(*reference)) {
+    diameter_m += 2.0 * dc::smallestEnclosingSphere(reference->body(i).restPositions()).radius;
+  }
+  diameter_m /= double(softObjects(*reference).size());
+  const double baseline_ms = fullRefitMs(*reference);
+  appendBaseline(results_dir, "s2", baseline_ms);
+  // How much the settled pile still moves: what the deviations grow from.
+  double speed_mps = 0.0;
+  for (const std::size_t i : softObjects(*reference)) {
+    for (const Eigen::Vector3d& v : reference->body(i).velocities()) speed_mps += v.norm();
+  }
+  speed_mps /= double(settled_points.size());
+  {
+    db::CsvAppender state(
+        results_dir + "/s2_state.csv",
+        "soft_points,settle_cycles,cycles_per_level,mean_diameter_m,mean_point_speed_mps");
+    std::fprintf(state.file(), "%zu,%d,%d,%.5f,%.5f\n", settled_points.size(), settle, cycles,
+                 diameter_m, speed_mps);
+  }
+
+  std::vector<dc::SceneContact> fine, coarse;
+  reference->contactsAt(finest, std::nullopt, std::nullopt, fine);
+  std::vector<double> coverage(finest + 1, 0.0);
+  for (int level = 1; level < finest; ++level) {
+    reference->contactsAt(level, std::nullopt, std::nullopt, coarse);
+    coverage[level] = coverageError(fine, coarse);
+  }
+  std::vector<Means> means(finest + 1);
+  means[finest] = runCycles(*reference, cycles);
+  const std::vector<Eigen::Vector3d> reference_points = softPoints(*reference);
+  reference.reset();
+
+  std::vector<double> rms_rel(finest + 1, 0.0);
+  for (int level = 1; level < finest; ++level) {
+    auto scene = settled(dc::DemoScene::kPile, settle);
+    if (softPoints(*scene) != settled_points) {
+      std::fprintf(stderr, "bench_scene s2: the settled pile differs between runs\n");
+      return 1;
+    }
+    scene->setLevel(level);
+    means[level] = runCycles(*scene, cycles);
+    const std::vector<Eigen::Vector3d> points = softPoints(*scene);
+    double squared = 0.0;
+    for (std::size_t p = 0; p < points.size(); ++p)
+      squared += (points[p] - reference_points[p]).squaredNorm();
+    rms_rel[level] = std::sqrt(squared / double(points.size())) / diameter_m;
+  }
+
+  std::printf(
+      "S2 pile: %zu soft points, settled for %d cycles, then %d cycles per level; "
+      "mean object diameter %.4f m, mean point speed when settled %.3f m/s; full refit "
+      "baseline %.3f ms\n\n",
+      settled_points.size(), settle, cycles, diameter_m, speed_mps, baseline_ms);
+  std::printf(
+      "| level | contacts | detection ms | response ms | total ms | / baseline | coverage m | "
+      "rms rel |\n|---|---|---|---|---|---|---|---|\n");
+  db::CsvAppender csv(
+      results_dir + "/s2.csv",
+      "level,contacts,detection_ms,response_ms,total_ms,coverage_error_m,rms_error_rel");
+  for (int level = 1; level <= finest; ++level) {
+    const Means& m = means[level];
+    const double total = m.detection_ms + m.response_ms;
+    std::printf("| %d | %.0f | %.3f | %.3f | %.3f | %.3f | %.4f | %.5f |\n", level, m.contacts,
+                m.detection_ms, m.response_ms, total, total / baseline_ms, coverage[level],
+                rms_rel[level]);
+    std::fprintf(csv.file(), "%d,%.1f,%.5f,%.5f,%.5f,%.6f,%.6f\n", level, m.contacts,
+                 m.detection_ms, m.response_ms, total, coverage[level], rms_rel[level]);
+  }
+  return 0;
+}
+
+int runS3(const std::string& results_dir, int settle, int cycles) {
+  auto scene = settled(dc::DemoScene::kThreeObjects, settle);
+  const double baseline_ms = fullRefitMs(*scene);
+  appendBaseline(results_dir, "s3", baseline_ms);
+  double conversion_ms = 0.0, whole_ms = 0.0;
+  Means m;
+  for (int c = 0; c < cycles; ++c) {
+    const auto start = db::Clock::now();
+    scene->cycle();
+    // As the node publishes: a new message per object and cycle.
+    const auto converting = db::Clock::now();
+    for (std::size_t i = 0; i < scene->objectCount(); ++i) {
+      sensor_msgs::PointCloud2 cloud;
+      dc::writeCloudPoints(scene->body(i).positions(), cloud);
+    }
+    conversion_ms += db::millisecondsSince(converting) / cycles;
+    whole_ms += db::millisecondsSince(start) / cycles;
+    const dc::CycleStats& s = scene->stats();
+    m.shape_matching_ms += s.shape_matching_ms / cycles;
+    m.detection_ms += s.detection_ms / cycles;
+    m.response_ms += s.response_ms / cycles;
+    m.contacts += double(s.contacts) / cycles;
+  }
+  std::size_t points = 0;
+  for (std::size_t i = 0; i < scene->objectCount(); ++i) points += scene->body(i).pointCount();
+  std::printf(
+      "S3 three objects: %zu points, settled for %d cycles, mean of %d, %.0f contacts; "
+      "full refit baseline %.3f ms\n\n| stage | ms | / baseline |\n|---|---|---|\n",
+      points, settle, cycles, m.contacts, baseline_ms);
+  db::CsvAppender csv(results_dir + "/s3.csv", "stage,ms");
+  const std::pair<const char*, double> stages[] = {{"deformation", m.shape_matching_ms},
+                                                   {"detection", m.detection_ms},
+                                                   {"response", m.response_ms},
+                                                   {"conversion_to_pointcloud2", conversion_ms},
+                                                   {"whole_cycle", whole_ms}};
+  for (const auto& [stage, ms] : stages) {
+    std::printf("| %s | %.4f | %.3f |\n", stage, ms, ms / baseline_ms);
+    std::fprintf(csv.file(), "%s,%.5f\n", stage, ms);
+  }
+  return 0;
+}
+
+int runMemory(const std::string& name, const std::string& results_dir, int cycles) {
+  const auto kind = dc::parseDemoScene(name);
+  if (!kind) {
+    std::fprintf(stderr, "bench_scene memory: unknown scene '%s'\n", name.c_str());
+    return 2;
+  }
+  const long before = db::peakResidentBytes();
+  const std::size_t requested = *kind == dc::DemoScene::kTwoObjects ? 160000 : 0;
+  auto scene = dc::makeDemoScene(*kind, requested);
+  for (int c = 0; c < cycles; ++c) scene->cycle();
+  const long peak = db::peakResidentBytes();
+  std::size_t points = 0;
+  for (std::size_t i = 0; i < scene->objectCount(); ++i) points += scene->body(i).pointCount();
+  const double per_point = double(peak - before) / double(points);
+  std::printf(
+      "%s: %zu points, peak resident %.1f MB (%.1f MB before the scene), %.0f bytes per point\n",
+      name.c_str(), points, peak / 1e6, before / 1e6, per_point);
+  db::CsvAppender csv(results_dir + "/memory.csv",
+                      "scene,points,rss_before_bytes,peak_rss_bytes,bytes_per_point");
+  std::fprintf(csv.file(), "%s,%zu,%ld,%ld,%.0f\n", name.c_str(), points, before, peak, per_point);
+  return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int settle = argc > 1 ? std::atoi(argv[1]) : 150;
-  const int measured = argc > 2 ? std::atoi(argv[2]) : 20;
-  const int finest = dc::makeDemoScene(dc::DemoScene::kPile)->maxLevel();
-  std::printf("S2 pile, %d settling cycles, mean of %d\n\n", settle, measured);
-  std::printf("| level | contacts | detection ms | response ms | total ms |\n|---|---|---|---|---|\n");
-  for (int level = 1; level <= finest; ++level) {
-    const Figures f = run(dc::DemoScene::kPile, level, settle, measured);
-    std::printf("| %d | %.0f | %.2f | %.2f | %.2f |\n", level, f.contacts, f.detection_ms,
-                f.response_ms, f.detection_ms + f.response_ms);
-  }
-  const Figures s3 = run(dc::DemoScene::kThreeObjects, -1, settle, measured);
-  std::printf("\nS3 three objects, finest level: shape matching %.3f ms, detection %.3f ms, "
-              "response %.3f ms, cycle %.3f ms, %.0f contacts\n",
-              s3.shape_matching_ms, s3.detection_ms, s3.response_ms,
-              s3.shape_matching_ms + s3.detection_ms + s3.response_ms, s3.contacts);
-  return 0;
+  const std::string mode = argc > 1 ? argv[1] : "";
+  const auto intArg = [&](int index, int fallback) {
+    return argc > index ? std::atoi(argv[index]) : fallback;
+  };
+  if (mode == "s2" && argc > 2) return runS2(argv[2], intArg(3, 150), intArg(4, 100));
+  if (mode == "s3" && argc > 2) return runS3(argv[2], intArg(3, 150), intArg(4, 100));
+  if (mode == "memory" && argc > 3) return runMemory(argv[2], argv[3], intArg(4, 150));
+  std::fprintf(
+      stderr,
+      "usage: bench_scene s2 results_dir [settle=150] [cycles=100]\n"
+      "       bench_scene s3 results_dir [settle=150] [cycles=100]\n"
+      "       bench_scene memory two_objects|pile|three_objects results_dir [cycles=150]\n");
+  return 2;
 }

@@ -1,0 +1,222 @@
+#!/usr/bin/python3
+"""Writes the benchmark report from the CSV files of scripts/run_benchmarks.
+
+Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s3.csv,
+baselines.csv and memory.csv there; writes s1.md, s2.md, s3.md, memory.md, summary.md
+(the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png.
+Run by Debian's python3 (python3-matplotlib).
+"""
+import csv
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
+
+OURS = "deformation_update"
+OUR_VARIANTS = ("deformation_update", "exact_refit", "full_refit")
+PEERS = ("fcl_aabb", "fcl_obbrss", "bullet_dbvt", "pcl_kdtree")
+
+WHAT_S1_METHODS_DO = """\
+Every method answers the same query on the same deforming points, in the same process,
+each step: which point pairs (one point of each ball) are closer than the contact distance.
+The run stops if any method finds other pairs than `deformation_update`.
+
+| method | what one step does | volumes updated counts |
+|---|---|---|
+| deformation_update | our sphere trees; spheres from the shape-matching matrices, computed only where the query descends; query to the leaves | spheres computed |
+| exact_refit | our sphere trees; smallest enclosing sphere of the current points of each visited node | spheres computed |
+| full_refit | our sphere trees; every node refitted bottom-up, then the same query | spheres refitted (all) |
+| fcl_aabb | FCL BVHModel<AABB> point cloud per ball: beginUpdateModel / updateSubModel / endUpdateModel (bottom-up refit), then a descent over FCL's nodes with FCL's AABB distance test | BV nodes refitted (all) |
+| fcl_obbrss | the same with BVHModel<OBBRSS>, refitted top-down (FCL 0.7.0's bottom-up OBBRSS refit leaves boxes that miss points); FCL's OBB overlap test on boxes grown by half the contact distance | BV nodes refitted (all) |
+| bullet_dbvt | a btDbvt per ball, a leaf per point (its box grown by half the contact distance); leaves updated as btDbvtBroadphase does (reinserted when they leave their fattened box, one optimizeIncremental pass), then collideTT | leaves reinserted |
+| pcl_kdtree | KdTreeFLANN over ball b rebuilt, a radius search around every point of ball a inside b's box grown by the contact distance | points indexed |
+
+FCL's own collide() and distance() take triangle models only, so the FCL query is a
+descent over FCL's bounding volumes written in the bench. Every peer confirms its candidate
+pairs with the exact distance in double precision.
+"""
+
+
+def read(results, name):
+    with open(os.path.join(results, name), newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def table(header, rows):
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def write(results, name, text):
+    with open(os.path.join(results, name), "w") as f:
+        f.write(text)
+
+
+def s1_report(results):
+    rows = read(results, "s1.csv")
+    pairs = {int(r["points"]): r for r in read(results, "s1_pairs.csv")}
+    sizes = sorted({int(r["points"]) for r in rows})
+    ms = {(int(r["points"]), r["method"]): float(r["collision_ms"]) for r in rows}
+    methods = [m for m in OUR_VARIANTS + PEERS if (sizes[0], m) in ms]
+    body = [(int(r["points"]), r["method"], r["spheres_updated"], f"{float(r['collision_ms']):.3f}",
+             f"{float(r['ratio_to_full_refit']):.4f}",
+             f"{float(r['collision_ms']) / ms[(int(r['points']), OURS)]:.1f}")
+            for r in rows]
+    text = "# S1: two deforming balls, collision stage per step\n\n"
+    text += ("Two quadratic shape-matching balls (radius 0.5 m, 4 clusters each) pressed 2 cm into "
+             "each other and released from a bend, contact distance 5 mm; mean of "
+             f"{pairs[sizes[0]]['steps']} steps per size. Times in ms per step; the baseline is "
+             "`full_refit` in the same run.\n\n")
+    text += table(["points in all", "method", "volumes updated/step", "collision ms", "/ full refit",
+                   "/ deformation_update"], body)
+    text += "\nPoint pairs closer than the contact distance, found identically by all methods:\n\n"
+    text += table(["points in all", "methods agreeing", "point pairs/step"],
+                  [(p, pairs[p]["methods"], pairs[p]["point_pairs_per_step"]) for p in sizes])
+    text += "\n" + WHAT_S1_METHODS_DO
+    write(results, "s1.md", text)
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for m in methods:
+        ax.loglog(sizes, [ms[(p, m)] for p in sizes], marker="o", label=m,
+                  linewidth=2.5 if m == OURS else 1.2)
+    ax.set_xlabel("points in both objects")
+    ax.set_ylabel("collision stage, ms per step")
+    ax.set_title("S1: update + query against points")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(results, "s1_time_vs_points.png"), dpi=110)
+    plt.close(fig)
+    return sizes, ms, methods
+
+
+def baseline(results, scene):
+    return next(float(r["ms"]) for r in read(results, "baselines.csv") if r["scene"] == scene)
+
+
+def s2_report(results):
+    rows = read(results, "s2.csv")
+    state = read(results, "s2_state.csv")[0]
+    base = baseline(results, "s2")
+    text = "# S2: the pile at every level\n\n"
+    text += (f"300 soft objects ({state['soft_points']} points in them, plus the box), settled "
+             f"for {state['settle_cycles']} cycles at the finest level, then "
+             f"{state['cycles_per_level']} cycles at each level from that same state; means over "
+             f"those cycles. Baseline: a full bottom-up refit of every soft object's hierarchy on "
+             f"the settled state, {base:.3f} ms, in the same run.\n\n"
+             "Error against the finest level: coverage, the largest distance from a contact at "
+             "the finest level to the nearest contact of the same object pair at this level, "
+             "both on the settled state; RMS, the deviation of all soft points from the "
+             f"finest-level run after the {state['cycles_per_level']} cycles, over the mean object "
+             f"diameter ({float(state['mean_diameter_m']):.4f} m). The settled pile still moves "
+             f"(mean point speed {float(state['mean_point_speed_mps']):.3f} m/s), so runs that "
+             "differ in any contact drift apart.\n\n")
+    body = [(r["level"], f"{float(r['contacts']):.0f}", f"{float(r['detection_ms']):.2f}",
+             f"{float(r['response_ms']):.2f}", f"{float(r['total_ms']):.2f}",
+             f"{float(r['total_ms']) / base:.2f}", f"{float(r['coverage_error_m']):.4f}",
+             f"{float(r['rms_error_rel']):.3f}") for r in rows]
+    text += table(["level", "contacts", "detection ms", "response ms", "total ms", "total / baseline",
+                   "coverage error m", "RMS error / diameter"], body)
+    write(results, "s2.md", text)
+
+    total = [float(r["total_ms"]) for r in rows]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    for ax, column, label in ((axes[0], "coverage_error_m", "contact coverage error, m"),
+                              (axes[1], "rms_error_rel", f"RMS deviation after {state['cycles_per_level']} cycles / diameter")):
+        values = [float(r[column]) for r in rows]
+        ax.plot(total, values, marker="o")
+        for r, x, y in zip(rows, total, values):
+            ax.annotate(r["level"], (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+        ax.set_xlabel("detection + response, ms per cycle")
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+    fig.suptitle("S2: error against the finest level, one point per level")
+    fig.tight_layout()
+    fig.savefig(os.path.join(results, "s2_error_vs_time.png"), dpi=110)
+    plt.close(fig)
+    return rows
+
+
+def s3_report(results):
+    rows = read(results, "s3.csv")
+    base = baseline(results, "s3")
+    text = "# S3: three objects, the cycle stage by stage\n\n"
+    text += (f"A soft ball and a soft bar on a floor (19k points), finest level. Baseline: a full "
+             f"bottom-up refit of the soft objects' hierarchies, {base:.3f} ms, in the same run. "
+             "The conversion writes every object's points into a new PointCloud2, as the node "
+             "publishes them; the whole cycle is timed around Scene::cycle and the conversion.\n\n")
+    text += table(["stage", "ms", "/ baseline"],
+                  [(r["stage"], f"{float(r['ms']):.3f}", f"{float(r['ms']) / base:.3f}") for r in rows])
+    write(results, "s3.md", text)
+    return {r["stage"]: float(r["ms"]) for r in rows}
+
+
+def memory_report(results):
+    rows = read(results, "memory.csv")
+    text = "# Memory: peak resident memory per scene\n\n"
+    text += ("Each scene in its own process, built and run for 150 cycles (two_objects with 160k "
+             "points, S1's largest size). Bytes per point: the growth of the peak resident memory "
+             "over the process before the scene, over all points of the scene (the static box "
+             "and floor included).\n\n")
+    text += table(["scene", "points", "peak MB", "before the scene MB", "bytes per point"],
+                  [(r["scene"], r["points"], f"{int(r['peak_rss_bytes']) / 1e6:.1f}",
+                    f"{int(r['rss_before_bytes']) / 1e6:.1f}", r["bytes_per_point"]) for r in rows])
+    write(results, "memory.md", text)
+
+
+def summary(results, sizes, ms, methods, s2_rows, s3):
+    largest, smallest = sizes[-1], sizes[0]
+    ours = ms[(largest, OURS)]
+    peers = [m for m in methods if m in PEERS]
+    best_peer = min(peers, key=lambda m: ms[(largest, m)])
+    peer_factor = ms[(largest, best_peer)] / ours
+    refit_factor = ms[(largest, "full_refit")] / ours
+    growth = ours / ms[(smallest, OURS)]
+    finest = s2_rows[-1]
+    finest_total = float(finest["total_ms"])
+    s3_cycle = s3["whole_cycle"]
+
+    def verdict(ok):
+        return "**met**" if ok else "**not met**"
+
+    lines = [
+        "# Targets\n",
+        table(["target", "measured", "verdict"], [
+            (f"S1 at {largest // 1000}k points: collision stage >= 10x faster than the best peer",
+             f"{OURS} {ours:.3f} ms, best peer {best_peer} {ms[(largest, best_peer)]:.3f} ms: {peer_factor:.1f}x",
+             verdict(peer_factor >= 10)),
+            (f"S1 at {largest // 1000}k points: >= 10x faster than the full refit",
+             f"full_refit {ms[(largest, 'full_refit')]:.3f} ms: {refit_factor:.1f}x", verdict(refit_factor >= 10)),
+            (f"S1: time at {largest // 1000}k / time at {smallest // 1000}k <= 3",
+             f"{ours:.3f} / {ms[(smallest, OURS)]:.3f} ms = {growth:.1f} "
+             f"(full_refit {ms[(largest, 'full_refit')] / ms[(smallest, 'full_refit')]:.1f})",
+             verdict(growth <= 3)),
+            (f"S2 finest level ({finest['level']}): detection + response <= 10 ms",
+             f"{float(finest['detection_ms']):.2f} + {float(finest['response_ms']):.2f} = {finest_total:.2f} ms",
+             verdict(finest_total <= 10)),
+            ("S3: whole cycle <= 1 ms", f"{s3_cycle:.3f} ms (with the PointCloud2 conversion)",
+             verdict(s3_cycle <= 1)),
+        ]),
+    ]
+    write(results, "summary.md", "\n".join(lines))
+
+
+def main():
+    results = sys.argv[1] if len(sys.argv) > 1 else "bench/results"
+    sizes, ms, methods = s1_report(results)
+    s2_rows = s2_report(results)
+    s3 = s3_report(results)
+    memory_report(results)
+    summary(results, sizes, ms, methods, s2_rows, s3)
+    for name in ("summary.md", "s1.md", "s2.md", "s3.md", "memory.md"):
+        with open(os.path.join(results, name)) as f:
+            print(f.read())
+    print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png)")
+
+
+if __name__ == "__main__":
+    main()
