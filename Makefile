@@ -8,8 +8,9 @@ JOBS ?= 2
 RVIZ ?= 0
 DEMO_ARGS ?=
 FUZZ_SECONDS ?= 300
+LOAD_SECONDS ?= 300
 
-.PHONY: deps build test fuzz demo bench screenshot clean
+.PHONY: deps build test fuzz load demo bench screenshot clean
 
 deps:
 	@bash scripts/install_deps $(if $(filter 1,$(RVIZ)),rviz)
@@ -23,6 +24,10 @@ test: build
 # Each libFuzzer target for FUZZ_SECONDS (make test runs them for 20 s each).
 fuzz: build
 	@bash scripts/run_sanitized "$(WORKSPACE)" "$(JOBS)" fuzz "$(FUZZ_SECONDS)" "$(CURDIR)/build/fuzz_results"
+
+# 300 tracked objects, clouds at 30 Hz each, the node at 100 Hz, for LOAD_SECONDS.
+load: build
+	@bash scripts/run_load_test "$(WORKSPACE)" "$(LOAD_SECONDS)"
 
 demo: build
 	@RVIZ=$(RVIZ) bash scripts/run_demo "$(WORKSPACE)" $(DEMO_ARGS)
