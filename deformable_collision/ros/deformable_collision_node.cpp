@@ -13,6 +13,8 @@ namespace {
 
 constexpr double kThrottlePeriodS = 5.0;
 constexpr std::chrono::seconds kReportPeriod(5);
+/// Per object: enough for a sensor at 30 Hz whose tf lags by a few frames.
+constexpr std::size_t kMaxAwaitingClouds = 8;
 
 NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   XmlRpc::XmlRpcValue params;
@@ -83,39 +85,49 @@ void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cl
                                       std::size_t index) {
   ObjectSlot& slot = slots_[index];
   ++stats_message_.clouds_received;
-  // A newer cloud makes one still waiting for its transform stale (a tracked object must
-  // not step back to it).
-  if (slot.awaiting_transform) {
-    slot.awaiting_transform.reset();
-    dropCloud(slot, ros::console::levels::Warn, "a newer one came before its transform");
+  const auto arrival = Clock::now();
+  // Behind older clouds that wait for their transform, in arrival order: a tracked object
+  // must not step back, and a sensor whose tf always lags keeps every cloud.
+  if (!slot.awaiting_transform.empty()) {
+    if (slot.awaiting_transform.size() == kMaxAwaitingClouds) {
+      slot.awaiting_transform.pop_front();
+      dropCloud(slot, ros::console::levels::Warn,
+                "more than " + std::to_string(kMaxAwaitingClouds) + " clouds wait for their transform");
+    }
+    slot.awaiting_transform.push_back({cloud, arrival});
+    retryAwaitingClouds(index, arrival);
+    return;
   }
-  processCloud(index, cloud, Clock::now(), config_.tf_wait_s == 0.0);
+  if (!processCloud(index, *cloud, arrival, config_.tf_wait_s == 0.0)) {
+    slot.awaiting_transform.push_back({cloud, arrival});
+  }
 }
 
 void DeformableCollisionNode::retryAwaitingClouds() {
   const auto now = Clock::now();
-  for (std::size_t index = 0; index < slots_.size(); ++index) {
-    ObjectSlot& slot = slots_[index];
-    if (!slot.awaiting_transform) continue;
+  for (std::size_t index = 0; index < slots_.size(); ++index) retryAwaitingClouds(index, now);
+}
+
+void DeformableCollisionNode::retryAwaitingClouds(std::size_t index, Clock::time_point now) {
+  auto& awaiting = slots_[index].awaiting_transform;
+  while (!awaiting.empty()) {
+    const AwaitingCloud& oldest = awaiting.front();
     const bool last_try =
-        std::chrono::duration<double>(now - slot.awaiting_since).count() >= config_.tf_wait_s;
-    const sensor_msgs::PointCloud2ConstPtr cloud = std::move(slot.awaiting_transform);
-    processCloud(index, cloud, slot.awaiting_since, last_try);
+        std::chrono::duration<double>(now - oldest.arrival).count() >= config_.tf_wait_s;
+    // tf arrives in time order: while the oldest cannot be placed, the newer wait too.
+    if (!processCloud(index, *oldest.cloud, oldest.arrival, last_try)) return;
+    awaiting.pop_front();
   }
 }
 
-void DeformableCollisionNode::processCloud(std::size_t index,
-                                           const sensor_msgs::PointCloud2ConstPtr& cloud,
+bool DeformableCollisionNode::processCloud(std::size_t index, const sensor_msgs::PointCloud2& cloud,
                                            Clock::time_point arrival, bool last_try) {
-  ObjectSlot& slot = slots_[index];
   // An exception leaving a callback would take the whole nodelet manager down.
   try {
-    if (handleCloud(*cloud, index, arrival, last_try) == CloudOutcome::kAwaitingTransform) {
-      slot.awaiting_transform = cloud;
-      slot.awaiting_since = arrival;
-    }
+    return handleCloud(cloud, index, arrival, last_try) != CloudOutcome::kAwaitingTransform;
   } catch (const std::exception& e) {
-    dropCloud(slot, ros::console::levels::Error, e.what());
+    dropCloud(slots_[index], ros::console::levels::Error, e.what());
+    return true;
   }
 }
 

@@ -7,6 +7,7 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <chrono>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -35,6 +36,11 @@ class DeformableCollisionNode {
  private:
   using Clock = std::chrono::steady_clock;
 
+  struct AwaitingCloud {
+    sensor_msgs::PointCloud2ConstPtr cloud;
+    Clock::time_point arrival;
+  };
+
   struct ObjectSlot {
     ObjectParams params;
     std::optional<std::size_t> index;  ///< In the scene, once a cloud set its rest shape.
@@ -46,10 +52,9 @@ class DeformableCollisionNode {
     /// ones) and that cloud's size, which every later cloud must have.
     std::vector<std::uint32_t> tracked_indices;
     std::size_t tracked_cloud_size = 0;
-    /// The newest cloud whose transform was not there yet, retried each cycle until
-    /// tf_wait_s after its arrival.
-    sensor_msgs::PointCloud2ConstPtr awaiting_transform;
-    Clock::time_point awaiting_since;
+    /// Clouds whose transform was not there yet, oldest first, retried in that order each
+    /// cycle and on each new cloud, each until tf_wait_s after its arrival.
+    std::deque<AwaitingCloud> awaiting_transform;
     std::optional<Clock::time_point> last_report;  ///< Of a dropped cloud.
     std::size_t drops_unreported = 0;
   };
@@ -58,9 +63,12 @@ class DeformableCollisionNode {
   enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
-  /// Tries the clouds that wait for their transform; drops those that waited too long.
+  /// Tries the clouds that wait for their transform, in order; drops those that waited
+  /// too long.
   void retryAwaitingClouds();
-  void processCloud(std::size_t slot, const sensor_msgs::PointCloud2ConstPtr& cloud,
+  void retryAwaitingClouds(std::size_t slot, Clock::time_point now);
+  /// False if the cloud waits for its transform.
+  bool processCloud(std::size_t slot, const sensor_msgs::PointCloud2& cloud,
                     Clock::time_point arrival, bool last_try);
   /// Counts a dropped cloud and says why, at most once per 5 s per object.
   void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
