@@ -29,14 +29,10 @@
 extern char** environ;
 
 namespace deformable_collision {
+namespace test {
 namespace {
 
 using sensor_msgs::PointCloud2;
-using test::cloudOf;
-using test::grid;
-using test::kTimeoutS;
-using test::Points;
-using test::waitFor;
 
 const std::string kNode = "/deformable_collision";
 const std::string kManager = "/faults_manager";
@@ -345,6 +341,7 @@ TEST_F(FaultsTest, TheManagerKilledIsRespawnedAndTheNodeComesBack) {
 }
 
 }  // namespace
+}  // namespace test
 }  // namespace deformable_collision
 
 int main(int argc, char** argv) {

@@ -18,14 +18,10 @@
 #include "node_test_support.h"
 
 namespace deformable_collision {
+namespace test {
 namespace {
 
 using sensor_msgs::PointCloud2;
-using test::cloudOf;
-using test::grid;
-using test::kTimeoutS;
-using test::Points;
-using test::waitFor;
 
 const std::string kNode = "/deformable_collision";
 const std::vector<std::string> kObjects = {"floor", "probe", "jaw", "ball"};
@@ -435,6 +431,7 @@ TEST(NodeletConfiguration, RefusesABadParameterNamingIt) {
 }
 
 }  // namespace
+}  // namespace test
 }  // namespace deformable_collision
 
 int main(int argc, char** argv) {
