@@ -11,8 +11,9 @@
 namespace deformable_collision {
 namespace {
 
-constexpr double kThrottlePeriodS = 5.0;
+/// At most one report per problem (per object, for dropped clouds) in this period.
 constexpr std::chrono::seconds kReportPeriod(5);
+constexpr double kThrottlePeriodS = std::chrono::duration<double>(kReportPeriod).count();
 /// Per object: enough for a sensor at 30 Hz whose tf lags by a few frames.
 constexpr std::size_t kMaxAwaitingClouds = 8;
 
