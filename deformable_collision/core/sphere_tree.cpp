@@ -38,10 +38,21 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
   }
   exact_radius_points_ = static_cast<std::uint32_t>(config.exact_radius_points);
   build(config);
-  spheres_.resize(nodes_.size());
-  stamps_.assign(nodes_.size(), 0);
+  states_.resize(nodes_.size());
+  std::size_t most_children = 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    const SphereNode& node = nodes_[i];
+    NodeState& state = states_[i];
+    state.first_child = node.first_child;
+    state.child_count = node.child_count;
+    state.first_point = node.first_point;
+    state.point_count = node.point_count;
+    state.level = node.level;
+    most_children = std::max<std::size_t>(most_children, node.child_count);
+  }
+  slot_positions_.setZero(3, static_cast<Eigen::Index>(point_indices_.size()));
   cluster_norms_.resize(body.clusterCount());
-  scratch_spheres_.reserve(body.clusterCount());
+  scratch_spheres_.reserve(most_children);
   std::size_t largest_node = 0;
   for (const auto& node : nodes_) largest_node = std::max<std::size_t>(largest_node, node.point_count);
   scratch_points_.reserve(largest_node);
@@ -162,8 +173,7 @@ void SphereTree::beginCycle(SphereUpdate method) {
   if (method == SphereUpdate::kBottomUpRefit) refitBottomUp();
 }
 
-const Sphere& SphereTree::sphere(std::uint32_t index) {
-  if (stamps_[index] == cycle_) return spheres_[index];
+const NodeState& SphereTree::updateSphere(std::uint32_t index) {
   Sphere sphere;
   if (method_ == SphereUpdate::kExactRefit) {
     sphere = exactSphere(index);
@@ -172,10 +182,19 @@ const Sphere& SphereTree::sphere(std::uint32_t index) {
   } else {
     sphere = deformationSphere(index);
   }
-  spheres_[index] = sphere;
-  stamps_[index] = cycle_;
+  NodeState& state = states_[index];
+  state.sphere = sphere;
+  state.stamp = cycle_;
   ++counters_.spheres_updated;
-  return spheres_[index];
+  return state;
+}
+
+void SphereTree::gatherLeafPositions(std::uint32_t index) {
+  const SphereNode& node = nodes_[index];
+  const auto& positions = body_->positions();
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    slot_positions_.col(s) = positions[point_indices_[s]];
+  }
 }
 
 const SphereTree::ClusterNorms& SphereTree::norms(std::size_t cluster) {
@@ -208,6 +227,7 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
   if (node.isLeaf() || node.point_count <= exact_radius_points_) {
     // A few points are quickly measured, and their exact distance is tighter than the bound.
     const auto& positions = body_->positions();
+    if (node.isLeaf()) gatherLeafPositions(index);
     double radius = 0.0;
     for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
       radius = std::max(radius, (positions[point_indices_[s]] - sphere.center).norm());
@@ -224,6 +244,7 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
 
 Sphere SphereTree::exactSphere(std::uint32_t index) {
   const SphereNode& node = nodes_[index];
+  if (node.isLeaf()) gatherLeafPositions(index);
   const auto& positions = body_->positions();
   scratch_points_.clear();
   for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
@@ -249,14 +270,18 @@ void SphereTree::refitBottomUp() {
   // Children always follow their parent in nodes_, so a backward sweep sees them first.
   for (std::uint32_t i = static_cast<std::uint32_t>(nodes_.size()); i-- > 0;) {
     const SphereNode& node = nodes_[i];
+    NodeState& state = states_[i];
     if (node.isLeaf()) {
-      spheres_[i] = exactSphere(i);
+      state.sphere = exactSphere(i);
     } else {
-      Sphere sphere = enclosingSphereOfSpheres(&spheres_[node.first_child], node.child_count);
-      sphere.radius = withRoundingMargin(sphere.radius, sphere.center);
-      spheres_[i] = sphere;
+      scratch_spheres_.clear();
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+        scratch_spheres_.push_back(states_[c].sphere);
+      }
+      state.sphere = enclosingSphereOfSpheres(scratch_spheres_.data(), scratch_spheres_.size());
+      state.sphere.radius = withRoundingMargin(state.sphere.radius, state.sphere.center);
     }
-    stamps_[i] = cycle_;
+    state.stamp = cycle_;
   }
   counters_.spheres_updated = nodes_.size();
 }

@@ -47,6 +47,22 @@ struct SphereNode {
   bool isLeaf() const { return child_count == 0; }
 };
 
+/// What a traversal reads of one node, in one cache line: its sphere in the current cycle
+/// and where its children and points are.
+struct alignas(64) NodeState {
+  Sphere sphere;
+  std::uint32_t first_child = 0;
+  std::uint32_t child_count = 0;
+  std::uint32_t first_point = 0;
+  std::uint32_t point_count = 0;
+  std::uint16_t level = 0;
+  bool isLeaf() const { return child_count == 0; }
+
+ private:
+  friend class SphereTree;
+  std::uint32_t stamp = 0;  ///< The cycle of `sphere`.
+};
+
 /// Counts of one cycle's sphere work.
 struct SphereTreeCounters {
   std::size_t spheres_updated = 0;
@@ -72,7 +88,21 @@ class SphereTree {
   void beginCycle(SphereUpdate method = SphereUpdate::kDeformation);
 
   /// The node's sphere in the current cycle, computed on first use.
-  const Sphere& sphere(std::uint32_t node);
+  const Sphere& sphere(std::uint32_t node) { return current(node).sphere; }
+
+  /// The node's state with its sphere in the current cycle, computed on first use: all a
+  /// traversal reads of the node.
+  const NodeState& current(std::uint32_t node) {
+    // Queries ask for the same spheres many times a cycle; only the first ask computes.
+    return states_[node].stamp == cycle_ ? states_[node] : updateSphere(node);
+  }
+
+  /// The current positions of the leaves' points, one row per coordinate, a column per
+  /// slot of pointIndices(), so that a leaf's coordinates are contiguous. A leaf's columns
+  /// are valid once current() returned its state in this cycle.
+  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor>& leafPositions() const {
+    return slot_positions_;
+  }
 
   const SphereNode& node(std::uint32_t index) const { return nodes_[index]; }
   std::size_t nodeCount() const { return nodes_.size(); }
@@ -93,6 +123,9 @@ class SphereTree {
 
   void build(const SphereTreeConfig& config);
   void computeRestData(std::uint32_t index);
+  const NodeState& updateSphere(std::uint32_t index);
+  /// Copies a leaf's current positions into slot_positions_ (see leafPositions()).
+  void gatherLeafPositions(std::uint32_t index);
   const ClusterNorms& norms(std::size_t cluster);
   Sphere deformationSphere(std::uint32_t index);
   Sphere exactSphere(std::uint32_t index);
@@ -107,9 +140,11 @@ class SphereTree {
 
   SphereUpdate method_ = SphereUpdate::kDeformation;
   std::uint32_t cycle_ = 1;
-  std::vector<Sphere> spheres_;
-  std::vector<std::uint32_t> stamps_;
+  std::vector<NodeState> states_;
   std::vector<ClusterNorms> cluster_norms_;
+  /// Visited leaves' positions in slot order: the leaf-pair tests read each coordinate of
+  /// a leaf contiguously, two points per instruction with SSE2.
+  Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> slot_positions_;
   std::vector<Eigen::Vector3d> scratch_points_;
   std::vector<std::uint32_t> scratch_order_;
   std::vector<Sphere> scratch_spheres_;
