@@ -111,8 +111,9 @@ struct Scene::Object {
   ShapeMatchingBody body;
   SphereTree tree;
   bool stale = false;  ///< Moved since its tree's spheres were last invalidated.
-  double sweep_min = 0.0;
-  double sweep_max = 0.0;
+  /// Box around the object's points, grown by half the contact distance, for the broad
+  /// phase: around the root sphere, or, for a static object, its points' own box once.
+  Eigen::AlignedBox3d sweep_box;
   // Response scratch: changes summed per point, averaged when applied.
   std::vector<Eigen::Vector3d> displacement_sums;
   std::vector<Eigen::Vector3d> velocity_change_sums;
@@ -230,6 +231,11 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
     throw std::invalid_argument("object '" + config.name + "': " + e.what());
   }
   if (!made->dynamic()) made->computeNodePlanes();
+  if (config.kind == ObjectKind::kStatic) {
+    for (const auto& point : made->body.positions()) made->sweep_box.extend(point);
+    made->sweep_box.min().array() -= 0.5 * config_.contact_distance_m;
+    made->sweep_box.max().array() += 0.5 * config_.contact_distance_m;
+  }
   return made;
 }
 
@@ -320,26 +326,31 @@ void Scene::sweepAndPrune() {
   sweep_order_.clear();
   for (std::uint32_t i = 0; i < objects_.size(); ++i) {
     Object& o = *objects_[i];
-    const Sphere& root = o.tree.sphere(0);
-    o.sweep_min = root.center.x() - root.radius - margin;
-    o.sweep_max = root.center.x() + root.radius + margin;
+    if (o.config.kind != ObjectKind::kStatic) {
+      // A wall's root sphere spans the room; its points' box is what it really covers.
+      const Sphere& root = o.tree.sphere(0);
+      const Eigen::Vector3d reach = Eigen::Vector3d::Constant(root.radius + margin);
+      o.sweep_box = Eigen::AlignedBox3d(root.center - reach, root.center + reach);
+    }
     sweep_order_.push_back(i);
   }
   std::sort(sweep_order_.begin(), sweep_order_.end(), [&](std::uint32_t a, std::uint32_t b) {
-    return objects_[a]->sweep_min < objects_[b]->sweep_min ||
-           (objects_[a]->sweep_min == objects_[b]->sweep_min && a < b);
+    const double start_a = objects_[a]->sweep_box.min().x();
+    const double start_b = objects_[b]->sweep_box.min().x();
+    return start_a < start_b || (start_a == start_b && a < b);
   });
   candidate_pairs_.clear();
   // Objects overlapping the current one along x are those after it whose interval starts
-  // before its own ends.
+  // before its own ends; of those, the ones whose boxes overlap along y and z are kept.
   for (std::size_t s = 0; s < sweep_order_.size(); ++s) {
     const Object& first = *objects_[sweep_order_[s]];
     for (std::size_t t = s + 1; t < sweep_order_.size(); ++t) {
       const Object& second = *objects_[sweep_order_[t]];
-      if (second.sweep_min > first.sweep_max) break;
+      if (second.sweep_box.min().x() > first.sweep_box.max().x()) break;
       if (first.config.kind == ObjectKind::kStatic && second.config.kind == ObjectKind::kStatic) {
         continue;
       }
+      if (!first.sweep_box.intersects(second.sweep_box)) continue;
       candidate_pairs_.emplace_back(std::min(sweep_order_[s], sweep_order_[t]),
                                     std::max(sweep_order_[s], sweep_order_[t]));
     }

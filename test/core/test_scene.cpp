@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <functional>
 #include <new>
+#include <set>
+#include <tuple>
 
 #include "deformable_collision/core/demo_scenes.h"
 #include "deformable_collision/core/shapes.h"
@@ -160,6 +163,54 @@ INSTANTIATE_TEST_SUITE_P(
                       SceneCase{"gripper", DemoScene::kGripper, 3000, 200, 1},
                       SceneCase{"pile", DemoScene::kPile, 15000, 120, 4}),
     [](const auto& info) { return std::string(info.param.name); });
+
+// The broad phase (sweep, boxes, root spheres) and the query together miss nothing: at the
+// leaves, a settling pile's contacts cover exactly the point pairs closer than the contact
+// distance of every pair of objects, walls and floor included.
+TEST(Scene, LeafContactsCoverEveryClosePointPairOfTheScene) {
+  auto scene = makeDemoScene(DemoScene::kPile, 3000);
+  for (int cycle = 0; cycle < 60; ++cycle) scene->cycle();
+  std::vector<SceneContact> contacts;
+  scene->contactsAt(scene->maxLevel(), std::nullopt, std::nullopt, contacts);
+  const double reach_squared = std::pow(scene->config().contact_distance_m, 2);
+
+  using ObjectPointPair = std::tuple<std::size_t, std::size_t, std::uint32_t, std::uint32_t>;
+  std::set<ObjectPointPair> truth;
+  for (std::size_t a = 0; a < scene->objectCount(); ++a) {
+    for (std::size_t b = a + 1; b < scene->objectCount(); ++b) {
+      if (scene->objectConfig(a).kind == ObjectKind::kStatic &&
+          scene->objectConfig(b).kind == ObjectKind::kStatic) {
+        continue;
+      }
+      const Points& pa = scene->body(a).positions();
+      const Points& pb = scene->body(b).positions();
+      for (std::uint32_t i = 0; i < pa.size(); ++i) {
+        for (std::uint32_t j = 0; j < pb.size(); ++j) {
+          if ((pa[i] - pb[j]).squaredNorm() < reach_squared) truth.emplace(a, b, i, j);
+        }
+      }
+    }
+  }
+  ASSERT_GT(truth.size(), 100u) << "the pile must be touching";
+  std::set<ObjectPointPair> covered;
+  for (const SceneContact& c : contacts) {
+    ASSERT_LT(c.object_a, c.object_b);
+    ASSERT_TRUE(truth.count({c.object_a, c.object_b, c.contact.point_a, c.contact.point_b}))
+        << "a contact without a close point pair";
+    const SphereTree& ta = scene->tree(c.object_a);
+    const SphereTree& tb = scene->tree(c.object_b);
+    const SphereNode& na = ta.node(c.contact.node_a);
+    const SphereNode& nb = tb.node(c.contact.node_b);
+    for (std::uint32_t s = na.first_point; s < na.first_point + na.point_count; ++s) {
+      for (std::uint32_t t = nb.first_point; t < nb.first_point + nb.point_count; ++t) {
+        covered.emplace(c.object_a, c.object_b, ta.pointIndices()[s], tb.pointIndices()[t]);
+      }
+    }
+  }
+  std::size_t missed = 0;
+  for (const auto& pair : truth) missed += covered.count(pair) == 0;
+  EXPECT_EQ(missed, 0u) << "of " << truth.size() << " close point pairs";
+}
 
 TEST(Scene, StaticObjectsNeverMove) {
   auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
