@@ -61,26 +61,32 @@ bool closestLeafPair(const SphereTree& a, const NodeState& leaf_a, const SphereT
   const Sphere& sphere_b = leaf_b.sphere;
   const double reach = sphere_b.radius + contact_distance_m;
   double best = contact_distance_m * contact_distance_m;
-  bool found = false;
+  std::uint32_t best_a = leaf_a.first_point + leaf_a.point_count;
   for (std::uint32_t s = leaf_a.first_point; s < leaf_a.first_point + leaf_a.point_count; ++s) {
     const double x = pa(0, s), y = pa(1, s), z = pa(2, s);
     if ((Eigen::Vector3d(x, y, z) - sphere_b.center).squaredNorm() >= reach * reach) continue;
     counters.point_tests += count_b;
-    if (!(nearestSquaredDistance(bx, by, bz, count_b, x, y, z) < best)) continue;
-    // A closer pair: which of b's points it is (the first one at that distance).
-    for (std::uint32_t t = 0; t < count_b; ++t) {
-      const double dx = x - bx[t], dy = y - by[t], dz = z - bz[t];
-      const double distance_squared = dx * dx + dy * dy + dz * dz;
-      if (distance_squared < best) {
-        best = distance_squared;
-        found = true;
-        contact.point_a = a.pointIndices()[s];
-        contact.point_b = b.pointIndices()[leaf_b.first_point + t];
-      }
+    const double nearest = nearestSquaredDistance(bx, by, bz, count_b, x, y, z);
+    if (nearest < best) {
+      best = nearest;
+      best_a = s;
     }
   }
   counters.point_tests += leaf_a.point_count;
-  if (!found) return false;
+  if (best_a == leaf_a.first_point + leaf_a.point_count) return false;
+  // Which of b's points is nearest to the closest point of a: the first at that distance.
+  std::uint32_t best_b = 0;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (std::uint32_t t = 0; t < count_b; ++t) {
+    const double dx = pa(0, best_a) - bx[t], dy = pa(1, best_a) - by[t], dz = pa(2, best_a) - bz[t];
+    const double distance_squared = dx * dx + dy * dy + dz * dz;
+    if (distance_squared < nearest) {
+      nearest = distance_squared;
+      best_b = t;
+    }
+  }
+  contact.point_a = a.pointIndices()[best_a];
+  contact.point_b = b.pointIndices()[leaf_b.first_point + best_b];
   const Eigen::Vector3d& x = a.body().positions()[contact.point_a];
   const Eigen::Vector3d& y = b.body().positions()[contact.point_b];
   contact.position = 0.5 * (x + y);
@@ -100,17 +106,18 @@ bool withinReach(const Sphere& a, const Sphere& b, double contact_distance_m) {
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              std::vector<SphereContact>& contacts, QueryCounters& counters) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
+  // Branch-free where the outcome is a coin toss: which pairs end, which are in reach.
   const auto terminal = [level](const NodeState& node) {
-    return node.isLeaf() || static_cast<int>(node.level) >= level;
+    return node.isLeaf() | (static_cast<int>(node.level) >= level);
   };
   // Pairs are tested before they are stacked, so the stack holds only pairs within reach.
   ++counters.node_pairs_tested;
   if (!withinReach(a.sphere(0), b.sphere(0), contact_distance_m)) return;
-  stack_.clear();
-  stack_.emplace_back(0, 0);
-  while (!stack_.empty()) {
-    const auto [ia, ib] = stack_.back();
-    stack_.pop_back();
+  if (stack_.empty()) stack_.resize(1);
+  stack_[0] = {0, 0};
+  std::size_t stacked = 1;
+  while (stacked > 0) {
+    const auto [ia, ib] = stack_[--stacked];
     const NodeState& na = a.current(ia);
     const NodeState& nb = b.current(ib);
     const bool stop_a = terminal(na);
@@ -139,16 +146,21 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
       continue;
     }
     // Descend the node that is not done, the larger one if both may go on. Children are
-    // stacked last first, so that contacts come in depth-first order.
-    if (!stop_a && (stop_b || na.sphere.radius >= nb.sphere.radius)) {
+    // stacked last first, so that contacts come in depth-first order; each is written on
+    // top and kept if it is within reach. The stack grows only in the first queries.
+    const bool split_a = !stop_a && (stop_b || na.sphere.radius >= nb.sphere.radius);
+    const NodeState& split = split_a ? na : nb;
+    if (stack_.size() < stacked + split.child_count) stack_.resize(stacked + split.child_count);
+    counters.node_pairs_tested += split.child_count;
+    if (split_a) {
       for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
-        ++counters.node_pairs_tested;
-        if (withinReach(a.sphere(c), nb.sphere, contact_distance_m)) stack_.emplace_back(c, ib);
+        stack_[stacked] = {c, ib};
+        stacked += withinReach(a.sphere(c), nb.sphere, contact_distance_m);
       }
     } else {
       for (std::uint32_t c = nb.first_child + nb.child_count; c-- > nb.first_child;) {
-        ++counters.node_pairs_tested;
-        if (withinReach(na.sphere, b.sphere(c), contact_distance_m)) stack_.emplace_back(ia, c);
+        stack_[stacked] = {ia, c};
+        stacked += withinReach(na.sphere, b.sphere(c), contact_distance_m);
       }
     }
   }
