@@ -150,7 +150,9 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
     // top and kept if it is within reach. The stack grows only in the first queries.
     const bool split_a = !stop_a && (stop_b || na.sphere.radius >= nb.sphere.radius);
     const NodeState& split = split_a ? na : nb;
-    if (stack_.size() < stacked + split.child_count) stack_.resize(stacked + split.child_count);
+    if (stack_.size() < stacked + split.child_count) {
+      stack_.resize(std::max(2 * stack_.size(), stacked + split.child_count));
+    }
     counters.node_pairs_tested += split.child_count;
     if (split_a) {
       for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
