@@ -29,6 +29,9 @@ struct Scene::Object {
       displacement_sums.assign(body.pointCount(), Eigen::Vector3d::Zero());
       velocity_change_sums.assign(body.pointCount(), Eigen::Vector3d::Zero());
       displacement_counts.assign(body.pointCount(), 0);
+      // Every point may be dented some cycle: the first such cycle must not allocate either.
+      displaced_points.reserve(body.pointCount());
+      displacements.reserve(body.pointCount());
     }
   }
 
@@ -37,8 +40,8 @@ struct Scene::Object {
   /// Rest-shape plane of every node (objects the response never moves). A node's own points
   /// may be too few to span a plane (a leaf of a two-layer floor is a small cube), so it
   /// takes the normal of its nearest ancestor that is clearly planar (16 points or more,
-  /// least spread under a tenth of the middle one), or the root's; the half thickness is that of its own points
-  /// around its sphere's centre, where the plane is anchored.
+  /// least spread under a tenth of the middle one), or the root's. The plane is anchored at
+  /// the node's sphere centre; its surfaces are where the node's own points reach from there.
   void computeNodePlanes() {
     const std::uint32_t count = static_cast<std::uint32_t>(tree.nodeCount());
     std::vector<std::uint32_t> parent(count, 0);
@@ -67,7 +70,8 @@ struct Scene::Object {
       planar[n] = node.point_count >= 16 && solver.eigenvalues()(0) < 0.1 * solver.eigenvalues()(1);
     }
     node_normals.resize(count);
-    node_half_thickness.resize(count);
+    node_extent_along.resize(count);
+    node_extent_against.resize(count);
     for (std::uint32_t n = 0; n < count; ++n) {
       std::uint32_t source = n;
       while (!planar[source] && source != 0) source = parent[source];
@@ -77,11 +81,17 @@ struct Scene::Object {
           node.cluster < 0 ? node.rest_center
                            : Eigen::Vector3d(node.rest_center +
                                              body.cluster(node.cluster).rest_center_of_mass);
-      double half = 0.0;
+      // The sphere's centre need not lie midway between the layers of a slab (a few points
+      // of the top layer may fix the sphere), so each side is measured on its own.
+      double along = 0.0;
+      double against = 0.0;
       for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-        half = std::max(half, std::abs((rest[tree.pointIndices()[s]] - center).dot(node_normals[n])));
+        const double offset = (rest[tree.pointIndices()[s]] - center).dot(node_normals[n]);
+        along = std::max(along, offset);
+        against = std::max(against, -offset);
       }
-      node_half_thickness[n] = half;
+      node_extent_along[n] = along;
+      node_extent_against[n] = against;
     }
   }
 
@@ -89,8 +99,10 @@ struct Scene::Object {
   /// pair has added to that move. A dented point is blocked by the other object: it also
   /// stops moving into it (the other object takes that momentum). Left alone, the goal step
   /// turns each cycle's dent into motion towards the contact, and a held contact pumps up
-  /// speed.
-  void applyPendingDents() {
+  /// speed. Both velocities are those after this response's whole-object changes
+  /// (velocity_after): a point measured before its object's own change would be stopped
+  /// twice, and a resting object would leave each cycle moving up.
+  void applyPendingDents(const std::vector<std::unique_ptr<Object>>& objects) {
     const auto& velocities = body.velocities();
     for (const PendingDent& pending : pending_dents) {
       const double beyond = pending.depth_unmoved_m - translation.dot(pending.away);
@@ -100,7 +112,9 @@ struct Scene::Object {
         const std::uint32_t point = tree.pointIndices()[s];
         if (displacement_counts[point]++ == 0) displaced_points.push_back(point);
         displacement_sums[point] += beyond * pending.away;
-        const double inward = std::min(0.0, (velocities[point] - pending.other_velocity).dot(pending.away));
+        const Eigen::Vector3d relative =
+            velocities[point] + velocity_change - objects[pending.partner]->velocity_after;
+        const double inward = std::min(0.0, relative.dot(pending.away));
         velocity_change_sums[point] -= inward * pending.away;
       }
     }
@@ -126,7 +140,7 @@ struct Scene::Object {
     std::uint32_t node = 0;
     Eigen::Vector3d away = Eigen::Vector3d::UnitZ();  ///< Direction this object is pushed.
     double depth_unmoved_m = 0.0;  ///< How far the node must go if the object did not move.
-    Eigen::Vector3d other_velocity = Eigen::Vector3d::Zero();
+    std::uint32_t partner = 0;  ///< The object it touches.
   };
   std::vector<PendingDent> pending_dents;
   /// The side each partner touched this object from, kept while the contact lasts: an
@@ -143,8 +157,13 @@ struct Scene::Object {
   // Response scratch of the whole object.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   Eigen::Vector3d velocity_change = Eigen::Vector3d::Zero();
+  /// Mean velocity once velocity_change is applied (zero for objects the response never moves).
+  Eigen::Vector3d velocity_after = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector3d> node_normals;  ///< Fixed objects: rest plane normal per node.
-  std::vector<double> node_half_thickness;    ///< Fixed objects: along that normal.
+  /// Fixed objects: how far the node's points reach from its sphere's centre along that
+  /// normal and against it.
+  std::vector<double> node_extent_along;
+  std::vector<double> node_extent_against;
 };
 
 std::optional<ObjectKind> parseObjectKind(const std::string& name) {
@@ -455,8 +474,13 @@ void Scene::respond() {
     run_begin = run_end;
   }
   for (auto& object : objects_) {
+    object->velocity_after = object->dynamic()
+                                 ? Eigen::Vector3d(object->body.meanVelocity() + object->velocity_change)
+                                 : Eigen::Vector3d::Zero();
+  }
+  for (auto& object : objects_) {
     if (!object->dynamic()) continue;
-    object->applyPendingDents();
+    object->applyPendingDents(objects_);
     const bool moved = object->translation.squaredNorm() > 0.0 ||
                        object->velocity_change.squaredNorm() > 0.0 ||
                        !object->displaced_points.empty();
@@ -497,14 +521,28 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   const Eigen::Vector3d translation_before_a = a.translation;
   const Eigen::Vector3d translation_before_b = b.translation;
   // The side a lies on, seen from b: as in the last cycle of this contact, or for a new
-  // contact, where the objects' centres are.
-  Eigen::Vector3d side = a.tree.sphere(0).center - b.tree.sphere(0).center;
+  // contact, where the objects' centres are. A fixed object's centre says little (a wall's
+  // lies a metre above what touches it), so its side is where its touched nodes are.
   Object& keeper = a.dynamic() ? a : b;
   const std::uint32_t partner = static_cast<std::uint32_t>(&keeper == &a ? index_b : index_a);
   auto kept = std::find_if(keeper.sides.begin(), keeper.sides.end(),
                            [&](const Object::ContactSide& k) { return k.partner == partner; });
+  Eigen::Vector3d side = Eigen::Vector3d::Zero();
   if (kept != keeper.sides.end() && kept->cycle + 1 >= cycle_count_) {
     side = &keeper == &a ? kept->normal : Eigen::Vector3d(-kept->normal);
+  } else if (fixed_pair) {
+    const bool a_fixed = !a.dynamic();
+    Object& fixed = a_fixed ? a : b;
+    Eigen::Vector3d touched = Eigen::Vector3d::Zero();
+    for (std::size_t k = run_begin; k < run_end; ++k) {
+      const SphereContact& c = contacts_[k].contact;
+      touched += fixed.tree.sphere(a_fixed ? c.node_a : c.node_b).center;
+    }
+    touched /= static_cast<double>(run_end - run_begin);
+    const Eigen::Vector3d moving_center = (a_fixed ? b : a).tree.sphere(0).center;
+    side = a_fixed ? Eigen::Vector3d(touched - moving_center) : Eigen::Vector3d(moving_center - touched);
+  } else {
+    side = a.tree.sphere(0).center - b.tree.sphere(0).center;
   }
   for (std::size_t k = run_begin; k < run_end; ++k) {
     const SphereContact& c = contacts_[k].contact;
@@ -523,7 +561,11 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
       const int cluster = std::max(0, fixed.tree.node(fixed_node).cluster);
       Eigen::Vector3d away = fixed.body.deformation(cluster).rotation * fixed.node_normals[fixed_node];
       const Eigen::Vector3d plane_point = fixed.tree.sphere(fixed_node).center;
-      if (away.dot(a_fixed ? Eigen::Vector3d(-side) : side) < 0.0) away = -away;
+      double surface = fixed.node_extent_along[fixed_node];
+      if (away.dot(a_fixed ? Eigen::Vector3d(-side) : side) < 0.0) {
+        away = -away;
+        surface = fixed.node_extent_against[fixed_node];
+      }
       // Pairs resolved before this one may have moved the object already.
       double lowest = moving.translation.dot(away);
       double deepest = std::numeric_limits<double>::infinity();
@@ -533,7 +575,7 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
       }
       lowest += deepest;
       const double depth =
-          fixed.node_half_thickness[fixed_node] + 0.5 * config_.contact_distance_m - lowest;
+          surface + 0.5 * config_.contact_distance_m - lowest;
       if (depth <= 0.0) continue;
       push.normal = a_fixed ? Eigen::Vector3d(-away) : away;
       push.depth_a = a_fixed ? 0.0 : depth;
@@ -607,11 +649,11 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   for (const ContactPush& push : pushes_) {
     if (a.dynamic() && push.depth_a > 0.0) {
       a.pending_dents.push_back({push.node_a, push.normal,
-                                 push.depth_a + translation_before_a.dot(push.normal), velocity_b});
+                                 push.depth_a + translation_before_a.dot(push.normal), index_b});
     }
     if (b.dynamic() && push.depth_b > 0.0) {
       b.pending_dents.push_back({push.node_b, -push.normal,
-                                 push.depth_b - translation_before_b.dot(push.normal), velocity_a});
+                                 push.depth_b - translation_before_b.dot(push.normal), index_a});
     }
   }
 
