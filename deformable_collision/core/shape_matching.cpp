@@ -444,7 +444,6 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
   positions_ = rest_positions_;
   velocities_.assign(n, Eigen::Vector3d::Zero());
   goal_sums_.assign(n, Eigen::Vector3d::Zero());
-  target_velocity_sums_.assign(n, Eigen::Vector3d::Zero());
 
   auto memberships =
       partitionIntoClusters(rest_positions_, config.clusters, config.cluster_overlap_ratio);
@@ -738,11 +737,6 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
       const std::uint32_t i = cluster.points[j];
       kernel.goal(cluster.rest_offsets[j], goal);
       goal_sums_[i] += Eigen::Vector3d(goal[0], goal[1], goal[2]);
-      if constexpr (Damped) {
-        rigidVelocity(positions_[i], target_velocity);
-        target_velocity_sums_[i] +=
-            Eigen::Vector3d(target_velocity[0], target_velocity[1], target_velocity[2]);
-      }
     }
     ClusterSums& sums = cluster_sums_[k];
     sums = ClusterSums{};
@@ -750,17 +744,16 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     addScaled(next, point_mass_kg_, sums);
   }
 
+  // A shared point takes the mean of its clusters' goals; the rigid velocity it is damped
+  // towards is the whole object's, the same in every cluster.
   for (const std::uint32_t i : shared_points_) {
     const double share = 1.0 / membership_counts_[i];
     double goal[3];
-    double target_velocity[3];
-    for (int r = 0; r < 3; ++r) {
-      goal[r] = share * goal_sums_[i][r];
-      target_velocity[r] = share * target_velocity_sums_[i][r];
-    }
+    double target_velocity[3] = {};
+    for (int r = 0; r < 3; ++r) goal[r] = share * goal_sums_[i][r];
+    if constexpr (Damped) rigidVelocity(positions_[i], target_velocity);
     integrate(positions_[i].data(), velocities_[i].data(), goal, target_velocity);
     goal_sums_[i].setZero();
-    target_velocity_sums_[i].setZero();
   }
 
   for (std::size_t k = 0; k < clusters_.size(); ++k) {

@@ -192,7 +192,6 @@ class ShapeMatchingBody {
   std::vector<double> cluster_displacement_scratch_;  ///< Largest displacement per cluster.
   std::vector<std::uint8_t> cluster_touched_scratch_;
   std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
-  std::vector<Eigen::Vector3d> target_velocity_sums_;  ///< Scratch for shared points' damping.
   std::vector<ClusterSums> cluster_sums_;  ///< Of the current positions and velocities.
   std::vector<Eigen::Matrix<double, 3, 9>> goal_transforms_;  ///< Scratch of one step.
   std::vector<Eigen::Vector3d> goal_translations_;             ///< Scratch of one step.
