@@ -251,6 +251,7 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
   }
   if (!made->dynamic()) made->computeNodePlanes();
   if (config.kind == ObjectKind::kStatic) {
+    // A wall's root sphere spans the room; its points' box is what it really covers.
     for (const auto& point : made->body.positions()) made->sweep_box.extend(point);
     made->sweep_box.min().array() -= 0.5 * config_.contact_distance_m;
     made->sweep_box.max().array() += 0.5 * config_.contact_distance_m;
@@ -345,8 +346,8 @@ void Scene::sweepAndPrune() {
   sweep_order_.clear();
   for (std::uint32_t i = 0; i < objects_.size(); ++i) {
     Object& o = *objects_[i];
+    // Static objects keep their points' box, set when they were made.
     if (o.config.kind != ObjectKind::kStatic) {
-      // A wall's root sphere spans the room; its points' box is what it really covers.
       const Sphere& root = o.tree.sphere(0);
       const Eigen::Vector3d reach = Eigen::Vector3d::Constant(root.radius + margin);
       o.sweep_box = Eigen::AlignedBox3d(root.center - reach, root.center + reach);
