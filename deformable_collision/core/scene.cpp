@@ -107,14 +107,15 @@ struct Scene::Object {
     for (const PendingDent& pending : pending_dents) {
       const double beyond = pending.depth_unmoved_m - translation.dot(pending.away);
       if (beyond <= 0.0) continue;
+      // The partner's velocity after the response, less this object's own change: what a
+      // point's current velocity is compared with.
+      const Eigen::Vector3d other_velocity = objects[pending.partner]->velocity_after - velocity_change;
       const SphereNode& node = tree.node(pending.node);
       for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
         const std::uint32_t point = tree.pointIndices()[s];
         if (displacement_counts[point]++ == 0) displaced_points.push_back(point);
         displacement_sums[point] += beyond * pending.away;
-        const Eigen::Vector3d relative =
-            velocities[point] + velocity_change - objects[pending.partner]->velocity_after;
-        const double inward = std::min(0.0, relative.dot(pending.away));
+        const double inward = std::min(0.0, (velocities[point] - other_velocity).dot(pending.away));
         velocity_change_sums[point] -= inward * pending.away;
       }
     }
