@@ -1,12 +1,14 @@
 // Publishes a built-in scene (deformable_collision/core/demo_scenes.h) as one PointCloud2
 // per object on <object>/points, and the frames of its kinematic objects on tf: the input
 // of the demo and of the node's tests. With ~simulate the scene is stepped and every cloud
-// shows the current points (for objects the node tracks); otherwise the rest shapes.
+// shows the current points (for objects the node tracks); otherwise the points as they are
+// after ~settle_s seconds of simulation (0: the rest shapes).
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <boost/make_shared.hpp>
+#include <cmath>
 
 #include "deformable_collision/core/demo_scenes.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
@@ -42,6 +44,7 @@ int main(int argc, char** argv) {
   const int points = private_handle.param("points", 0);
   const double rate_hz = private_handle.param("rate_hz", 10.0);
   const bool simulate = private_handle.param("simulate", false);
+  const double settle_s = private_handle.param("settle_s", 0.0);
   const std::string fixed_frame = private_handle.param<std::string>("fixed_frame", "world");
 
   const auto scene_kind = deformable_collision::parseDemoScene(scene_name);
@@ -49,9 +52,9 @@ int main(int argc, char** argv) {
     ROS_FATAL("~scene = '%s' must be two_objects, pile, three_objects or gripper", scene_name.c_str());
     return 1;
   }
-  if (!(rate_hz >= 10.0 && rate_hz <= 1000.0) || points < 0) {
-    ROS_FATAL("~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s) and "
-              "~points = %d >= 0", rate_hz, points);
+  if (!(rate_hz >= 10.0 && rate_hz <= 1000.0) || points < 0 || !(settle_s >= 0.0 && settle_s <= 60.0)) {
+    ROS_FATAL("~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s), "
+              "~points = %d >= 0 and ~settle_s = %g in [0, 60]", rate_hz, points, settle_s);
     return 1;
   }
   deformable_collision::SceneConfig config;
@@ -64,20 +67,29 @@ int main(int argc, char** argv) {
     return 1;
   }
 
+  // Settling runs before anything is published, on the scene's own clock, which the loop
+  // below continues (kinematic objects keep their course).
+  const int settle_cycles = static_cast<int>(std::lround(settle_s * rate_hz));
+  for (int cycle = 0; cycle < settle_cycles && ros::ok(); ++cycle) {
+    deformable_collision::driveDemoScene(*scene_kind, *scene, cycle * config.dt_s);
+    scene->cycle();
+  }
+
   std::vector<ros::Publisher> publishers;
   for (std::size_t i = 0; i < scene->objectCount(); ++i) {
     publishers.push_back(
         node_handle.advertise<sensor_msgs::PointCloud2>(scene->objectConfig(i).name + "/points", 2));
   }
   tf2_ros::TransformBroadcaster broadcaster;
-  ROS_INFO("scene_publisher: scene '%s' with %zu objects at %.1f Hz%s", scene_name.c_str(),
-           scene->objectCount(), rate_hz, simulate ? ", simulated" : "");
+  ROS_INFO("scene_publisher: scene '%s' with %zu objects at %.1f Hz%s, settled for %d cycles",
+           scene_name.c_str(), scene->objectCount(), rate_hz, simulate ? ", simulated" : "",
+           settle_cycles);
 
   const ros::Time start = ros::Time::now();
   ros::Rate rate(rate_hz);
   while (ros::ok()) {
     const ros::Time now = ros::Time::now();
-    const double time_s = (now - start).toSec();
+    const double time_s = settle_cycles * config.dt_s + (now - start).toSec();
     if (simulate) {
       deformable_collision::driveDemoScene(*scene_kind, *scene, time_s);
       scene->cycle();
