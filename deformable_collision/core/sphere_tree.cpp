@@ -189,14 +189,6 @@ const NodeState& SphereTree::updateSphere(std::uint32_t index) {
   return state;
 }
 
-void SphereTree::gatherLeafPositions(std::uint32_t index) {
-  const SphereNode& node = nodes_[index];
-  const auto& positions = body_->positions();
-  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-    slot_positions_.col(s) = positions[point_indices_[s]];
-  }
-}
-
 const SphereTree::ClusterNorms& SphereTree::norms(std::size_t cluster) {
   ClusterNorms& norms = cluster_norms_[cluster];
   if (norms.stamp == cycle_) return norms;
@@ -226,11 +218,14 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
   }
   if (node.isLeaf() || node.point_count <= exact_radius_points_) {
     // A few points are quickly measured, and their exact distance is tighter than the bound.
+    // A leaf's points are gathered for the leaf-pair tests in the same pass.
     const auto& positions = body_->positions();
-    if (node.isLeaf()) gatherLeafPositions(index);
+    const bool leaf = node.isLeaf();
     double radius = 0.0;
     for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-      radius = std::max(radius, (positions[point_indices_[s]] - sphere.center).norm());
+      const Eigen::Vector3d& x = positions[point_indices_[s]];
+      if (leaf) slot_positions_.col(s) = x;
+      radius = std::max(radius, (x - sphere.center).norm());
     }
     sphere.radius = withRoundingMargin(radius, sphere.center);
     return sphere;
@@ -244,11 +239,13 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
 
 Sphere SphereTree::exactSphere(std::uint32_t index) {
   const SphereNode& node = nodes_[index];
-  if (node.isLeaf()) gatherLeafPositions(index);
   const auto& positions = body_->positions();
+  const bool leaf = node.isLeaf();
   scratch_points_.clear();
   for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-    scratch_points_.push_back(positions[point_indices_[s]]);
+    const Eigen::Vector3d& x = positions[point_indices_[s]];
+    if (leaf) slot_positions_.col(s) = x;  // gathered for the leaf-pair tests
+    scratch_points_.push_back(x);
   }
   Sphere sphere = smallestEnclosingSphere(scratch_points_, scratch_order_);
   sphere.radius = withRoundingMargin(sphere.radius, sphere.center);

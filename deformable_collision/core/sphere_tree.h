@@ -124,8 +124,6 @@ class SphereTree {
   void build(const SphereTreeConfig& config);
   void computeRestData(std::uint32_t index);
   const NodeState& updateSphere(std::uint32_t index);
-  /// Copies a leaf's current positions into slot_positions_ (see leafPositions()).
-  void gatherLeafPositions(std::uint32_t index);
   const ClusterNorms& norms(std::size_t cluster);
   Sphere deformationSphere(std::uint32_t index);
   Sphere exactSphere(std::uint32_t index);
@@ -142,8 +140,9 @@ class SphereTree {
   std::uint32_t cycle_ = 1;
   std::vector<NodeState> states_;
   std::vector<ClusterNorms> cluster_norms_;
-  /// Visited leaves' positions in slot order: the leaf-pair tests read each coordinate of
-  /// a leaf contiguously, two points per instruction with SSE2.
+  /// Visited leaves' positions in slot order, copied where a leaf's sphere is computed: the
+  /// leaf-pair tests read each coordinate of a leaf contiguously, two points per instruction
+  /// with SSE2.
   Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> slot_positions_;
   std::vector<Eigen::Vector3d> scratch_points_;
   std::vector<std::uint32_t> scratch_order_;
