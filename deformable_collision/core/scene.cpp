@@ -487,11 +487,15 @@ void Scene::respond() {
                        object->velocity_change.squaredNorm() > 0.0 ||
                        !object->displaced_points.empty();
     if (!moved) continue;
-    // An object moves at most the contact distance per response, so it cannot jump past a
-    // layer thinner than that before the layer's contacts are seen; deeper overlaps take a
-    // few cycles.
+    // An object moves at most the contact distance per response beyond what this cycle's
+    // step moved it, so it cannot jump past a layer thinner than that before the layer's
+    // contacts are seen; deeper overlaps take a few cycles. The step's own motion can
+    // always be undone: with a long step, gravity alone takes a resting object deeper than
+    // the contact distance (g h^2 = 2.5 cm at h = 0.05 s), and a smaller cap sinks it.
+    const double allowed =
+        config_.contact_distance_m + config_.dt_s * object->body.meanVelocity().norm();
     const double reach = object->translation.norm();
-    if (reach > config_.contact_distance_m) object->translation *= config_.contact_distance_m / reach;
+    if (reach > allowed) object->translation *= allowed / reach;
     object->body.translate(object->translation);
     object->body.addVelocity(object->velocity_change);
     object->translation.setZero();
@@ -685,6 +689,24 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   const double inverse_b =
       b.dynamic() && b.support_depth >= a.support_depth ? 1.0 / b.body.config().mass_kg : 0.0;
   const double share_a = inverse_a / (inverse_a + inverse_b);
+  // Static friction on the positions: what the pair slid along its normal over the cycle,
+  // the step and every push so far, is taken back while it is inside the friction cone of
+  // this push. A resting object is pushed back each cycle by what gravity moved it, along
+  // normals that are never exact (fitted planes, nearest point pairs), and without this it
+  // walks sideways, by a normal's tilt times g h^2 per cycle. Sliding contacts are left to
+  // the velocity friction above.
+  const Eigen::Vector3d step_a =
+      a.dynamic() ? Eigen::Vector3d(config_.dt_s * a.body.meanVelocity()) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d step_b =
+      b.dynamic() ? Eigen::Vector3d(config_.dt_s * b.body.meanVelocity()) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d moved =
+      (step_a + translation_before_a + mean_a) - (step_b + translation_before_b + mean_b);
+  const Eigen::Vector3d slip = moved - moved.dot(normal) * normal;
+  const double pressed = (mean_a - mean_b).dot(normal);
+  if (slip.norm() <= config_.friction * pressed) {
+    mean_a -= share_a * slip;
+    mean_b += (1.0 - share_a) * slip;
+  }
   if (a.dynamic()) {
     a.translation += mean_a;
     a.velocity_change += share_a * change;

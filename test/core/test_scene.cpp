@@ -50,6 +50,12 @@ double lowestZ(const ShapeMatchingBody& body) {
   return z;
 }
 
+Eigen::Vector3d meanPosition(const ShapeMatchingBody& body) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& p : body.positions()) sum += p;
+  return sum / static_cast<double>(body.positions().size());
+}
+
 double fastestPoint(const Scene& scene) {
   double speed = 0.0;
   for (std::size_t o = 0; o < scene.objectCount(); ++o) {
@@ -124,9 +130,89 @@ INSTANTIATE_TEST_SUITE_P(Levels, RestingBoxTest, ::testing::Values(0, 1, 2, 4, 6
                          [](const auto& info) { return "level_" + std::to_string(info.param); });
 
 // ---------------------------------------------------------------------------------------
+// A stiff stack (alpha = 1) at a long step (h = 0.05 s): three boxes dropped onto each other
+// on a floor stand still for 1000 cycles, in every mode, at the finest and at coarse and
+// middle levels. At this step gravity alone takes a resting box 2.5 cm down per cycle, more
+// than the contact distance, and a pushed box walks sideways by its contact normals' tilt
+// unless friction holds it. (At levels 2 to 4 the top box still slides off as it lands;
+// see the issue notes.)
+
+struct StackCase {
+  const char* name;
+  DeformationMode mode;
+  int clusters;
+  int level;  ///< -1: the finest.
+};
+
+void PrintTo(const StackCase& c, std::ostream* os) { *os << c.name; }
+
+class StiffStackTest : public ::testing::TestWithParam<StackCase> {};
+
+TEST_P(StiffStackTest, StandsStillForAThousandLongSteps) {
+  const StackCase& c = GetParam();
+  SceneConfig config;
+  config.contact_distance_m = 0.02;
+  config.dt_s = 0.05;
+  config.level = c.level;
+  Scene scene(config);
+  ObjectConfig floor;
+  floor.name = "floor";
+  floor.kind = ObjectKind::kStatic;
+  scene.addObject(floor, floorPoints());
+  constexpr int kBoxes = 3;
+  constexpr double kHalfSide = 0.06;
+  std::vector<std::size_t> boxes;
+  for (int k = 0; k < kBoxes; ++k) {
+    ObjectConfig box;
+    box.name = "box_" + std::to_string(k);
+    box.shape.mode = c.mode;
+    box.shape.clusters = c.clusters;
+    box.shape.stiffness = 1.0;
+    Points points = sampleBox(1000, {kHalfSide, kHalfSide, kHalfSide}, 3 + k);
+    for (auto& p : points) p.z() += kHalfSide + config.contact_distance_m / 2 + k * (2 * kHalfSide + 0.02);
+    boxes.push_back(scene.addObject(box, points));
+  }
+
+  constexpr int kCycles = 1000, kLateCycles = 500;
+  std::vector<Eigen::Vector3d> late_start(kBoxes);
+  double late_fastest = 0.0;
+  for (int cycle = 0; cycle < kCycles; ++cycle) {
+    if (cycle == kCycles - kLateCycles) {
+      for (int k = 0; k < kBoxes; ++k) late_start[k] = meanPosition(scene.body(boxes[k]));
+    }
+    scene.cycle();
+    ASSERT_TRUE(allFinite(scene)) << "cycle " << cycle;
+    if (cycle >= kCycles - kLateCycles) late_fastest = std::max(late_fastest, fastestPoint(scene));
+  }
+  EXPECT_LT(late_fastest, 1e-3) << "m/s over the last " << kLateCycles << " cycles";
+  for (int k = 0; k < kBoxes; ++k) {
+    const Eigen::Vector3d at = meanPosition(scene.body(boxes[k]));
+    EXPECT_LT((at - late_start[k]).norm(), 1e-3) << "box " << k << " crept (m)";
+    if (k == 0) {
+      EXPECT_GT(lowestZ(scene.body(boxes[k])), 0.0) << "the bottom box entered the floor";
+      continue;
+    }
+    // Still on the box below: its centre above the lower box's top face, and not beyond
+    // its sides.
+    const Eigen::Vector3d below = meanPosition(scene.body(boxes[k - 1]));
+    EXPECT_GT(at.z() - below.z(), 2 * kHalfSide - config.contact_distance_m) << "box " << k << " sank in";
+    EXPECT_LT((at - below).head<2>().norm(), kHalfSide) << "box " << k << " slid off";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, StiffStackTest,
+    ::testing::Values(StackCase{"rigid_finest", DeformationMode::kRigid, 1, -1},
+                      StackCase{"rigid_level_1", DeformationMode::kRigid, 1, 1},
+                      StackCase{"linear_finest", DeformationMode::kLinear, 1, -1},
+                      StackCase{"linear_2_clusters_level_6", DeformationMode::kLinear, 2, 6},
+                      StackCase{"quadratic_3_clusters_finest", DeformationMode::kQuadratic, 3, -1},
+                      StackCase{"quadratic_level_0", DeformationMode::kQuadratic, 1, 0}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+// ---------------------------------------------------------------------------------------
 // Built-in scenes, small: nothing becomes NaN, nothing runs away, nothing goes through the
-// floor, at a coarse, a middle and the finest level. (The pile is not held at level 1 yet:
-// an object can be pushed through its floor there; see the issue notes.)
+// floor, at a coarse, a middle and the finest level.
 
 struct SceneCase {
   const char* name;
@@ -168,7 +254,7 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(SceneCase{"two_objects", DemoScene::kTwoObjects, 4000, 150, 1},
                       SceneCase{"three_objects", DemoScene::kThreeObjects, 9000, 200, 1},
                       SceneCase{"gripper", DemoScene::kGripper, 3000, 200, 1},
-                      SceneCase{"pile", DemoScene::kPile, 15000, 120, 4}),
+                      SceneCase{"pile", DemoScene::kPile, 15000, 120, 1}),
     [](const auto& info) { return std::string(info.param.name); });
 
 // The broad phase (sweep, boxes, root spheres) and the query together miss nothing: at the
