@@ -7,6 +7,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 namespace deformable_collision {
 namespace {
@@ -25,8 +28,8 @@ double nearestSquaredDistance(const double* xs, const double* ys, const double* 
   double nearest = std::numeric_limits<double>::infinity();
   std::uint32_t t = 0;
 #if defined(__SSE2__)
-  // Two points per instruction: this is the query's innermost loop. The sums are formed in
-  // the scalar loop's order, so both give the same bits.
+  // Two points per instruction, the innermost loop without wide vectors. The sums are
+  // formed in the scalar loop's order, so both give the same bits.
   const __m128d px = _mm_set1_pd(x);
   const __m128d py = _mm_set1_pd(y);
   const __m128d pz = _mm_set1_pd(z);
@@ -47,52 +50,193 @@ double nearestSquaredDistance(const double* xs, const double* ys, const double* 
   return nearest;
 }
 
-/// Closest point pair of two leaves closer than the contact distance, if any. Points of
-/// leaf a are first tested against leaf b's sphere.
-bool closestLeafPair(const SphereTree& a, const NodeState& leaf_a, const SphereTree& b,
-                     const NodeState& leaf_b, double contact_distance_m, SphereContact& contact,
-                     QueryCounters& counters) {
+#if defined(__GNUC__) && defined(__x86_64__)
+/// Squared distance of the nearest pair of two point sets, all pairs at once, eight of b's
+/// points per instruction. The sums are formed as in the scalar code, so both give the same
+/// bits.
+__attribute__((target("avx512f"))) double nearestPairSquaredDistanceAvx512(
+    const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
+    const double* by, const double* bz, std::uint32_t count_b) {
+  __m512d nearest = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+  for (std::uint32_t t = 0; t < count_b; t += 8) {
+    const __mmask8 lanes = count_b - t >= 8 ? 0xFF : static_cast<__mmask8>((1u << (count_b - t)) - 1);
+    const __m512d x = _mm512_maskz_loadu_pd(lanes, bx + t);
+    const __m512d y = _mm512_maskz_loadu_pd(lanes, by + t);
+    const __m512d z = _mm512_maskz_loadu_pd(lanes, bz + t);
+    for (std::uint32_t s = 0; s < count_a; ++s) {
+      const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(ax[s]), x);
+      const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(ay[s]), y);
+      const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(az[s]), z);
+      const __m512d squared =
+          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      nearest = _mm512_mask_min_pd(nearest, lanes, nearest, squared);
+    }
+  }
+  alignas(64) double lanes[8];
+  _mm512_store_pd(lanes, nearest);
+  return *std::min_element(lanes, lanes + 8);
+}
+
+/// The first pair, a's points in order and then b's, at `squared_distance` (one that
+/// nearestPairSquaredDistanceAvx512 returned), as offsets into a's and b's arrays.
+__attribute__((target("avx512f"))) void firstPairAtAvx512(
+    const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
+    const double* by, const double* bz, std::uint32_t count_b, double squared_distance,
+    std::uint32_t& offset_a, std::uint32_t& offset_b) {
+  const __m512d target = _mm512_set1_pd(squared_distance);
+  for (std::uint32_t s = 0; s < count_a; ++s) {
+    for (std::uint32_t t = 0; t < count_b; t += 8) {
+      const __mmask8 lanes = count_b - t >= 8 ? 0xFF : static_cast<__mmask8>((1u << (count_b - t)) - 1);
+      const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(ax[s]), _mm512_maskz_loadu_pd(lanes, bx + t));
+      const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(ay[s]), _mm512_maskz_loadu_pd(lanes, by + t));
+      const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(az[s]), _mm512_maskz_loadu_pd(lanes, bz + t));
+      const __m512d squared =
+          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      const std::uint32_t equal = _mm512_mask_cmp_pd_mask(lanes, squared, target, _CMP_EQ_OQ);
+      if (equal != 0) {
+        offset_a = s;
+        offset_b = t + static_cast<std::uint32_t>(__builtin_ctz(equal));
+        return;
+      }
+    }
+  }
+}
+
+/// Bit j set if sphere j of the `count` (<= 8) given by coordinate arrays comes within
+/// `reach_m` plus its radius of (x, y, z).
+__attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(
+    double x, double y, double z, double reach_m, const double* xs, const double* ys,
+    const double* zs, const double* radii, std::uint32_t count) {
+  const __mmask8 lanes = static_cast<__mmask8>((1u << count) - 1);
+  const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(x), _mm512_maskz_loadu_pd(lanes, xs));
+  const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(y), _mm512_maskz_loadu_pd(lanes, ys));
+  const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(z), _mm512_maskz_loadu_pd(lanes, zs));
+  const __m512d squared =
+      _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+  const __m512d reach = _mm512_add_pd(_mm512_maskz_loadu_pd(lanes, radii), _mm512_set1_pd(reach_m));
+  return _mm512_mask_cmp_pd_mask(lanes, squared, _mm512_mul_pd(reach, reach), _CMP_LT_OQ);
+}
+
+#endif
+
+/// Bit j set if sphere j of the `count` (<= 8) given by coordinate arrays comes within
+/// `reach_m` plus its radius of (x, y, z).
+std::uint32_t reachMask(bool wide_vectors, double x, double y, double z, double reach_m,
+                        const double* xs, const double* ys, const double* zs, const double* radii,
+                        std::uint32_t count) {
+#if defined(__GNUC__) && defined(__x86_64__)
+  if (wide_vectors) return reachMaskAvx512(x, y, z, reach_m, xs, ys, zs, radii, count);
+#endif
+  std::uint32_t mask = 0;
+  for (std::uint32_t j = 0; j < count; ++j) {
+    const double dx = x - xs[j], dy = y - ys[j], dz = z - zs[j];
+    const double reach = radii[j] + reach_m;
+    mask |= static_cast<std::uint32_t>(dx * dx + dy * dy + dz * dz < reach * reach) << j;
+  }
+  return mask;
+}
+
+/// Closest point pair of two leaves closer than the contact distance, if any: all pairs at
+/// once with wide vectors; otherwise the points of a near b's sphere, each against b's.
+bool closestLeafPair(bool wide_vectors, const SphereTree& a, const NodeState& leaf_a,
+                     const SphereTree& b, const NodeState& leaf_b, double contact_distance_m,
+                     SphereContact& contact, QueryCounters& counters) {
   const std::uint32_t count_b = leaf_b.point_count;
   const auto& pa = a.leafPositions();
   const auto& pb = b.leafPositions();
   const double* bx = &pb(0, leaf_b.first_point);
   const double* by = &pb(1, leaf_b.first_point);
   const double* bz = &pb(2, leaf_b.first_point);
-  const Sphere& sphere_b = leaf_b.sphere;
-  const double reach = sphere_b.radius + contact_distance_m;
+  const double* ax = &pa(0, leaf_a.first_point);
+  const double* ay = &pa(1, leaf_a.first_point);
+  const double* az = &pa(2, leaf_a.first_point);
+  const std::uint32_t count_a = leaf_a.point_count;
   double best = contact_distance_m * contact_distance_m;
-  std::uint32_t best_a = leaf_a.first_point + leaf_a.point_count;
-  for (std::uint32_t s = leaf_a.first_point; s < leaf_a.first_point + leaf_a.point_count; ++s) {
-    const double x = pa(0, s), y = pa(1, s), z = pa(2, s);
-    if ((Eigen::Vector3d(x, y, z) - sphere_b.center).squaredNorm() >= reach * reach) continue;
-    counters.point_tests += count_b;
-    const double nearest = nearestSquaredDistance(bx, by, bz, count_b, x, y, z);
-    if (nearest < best) {
-      best = nearest;
-      best_a = s;
-    }
-  }
-  counters.point_tests += leaf_a.point_count;
-  if (best_a == leaf_a.first_point + leaf_a.point_count) return false;
-  // Which of b's points is nearest to the closest point of a: the first at that distance.
+  // Offsets of the closest pair in the two leaves: the first point of a at the least
+  // distance, and the first point of b at that distance from it.
+  std::uint32_t best_a = count_a;
   std::uint32_t best_b = 0;
-  double nearest = std::numeric_limits<double>::infinity();
-  for (std::uint32_t t = 0; t < count_b; ++t) {
-    const double dx = pa(0, best_a) - bx[t], dy = pa(1, best_a) - by[t], dz = pa(2, best_a) - bz[t];
-    const double distance_squared = dx * dx + dy * dy + dz * dz;
-    if (distance_squared < nearest) {
-      nearest = distance_squared;
-      best_b = t;
+#if defined(__GNUC__) && defined(__x86_64__)
+  if (wide_vectors) {
+    counters.point_tests += count_a * count_b;
+    const double nearest = nearestPairSquaredDistanceAvx512(ax, ay, az, count_a, bx, by, bz, count_b);
+    if (!(nearest < best)) return false;
+    best = nearest;
+    firstPairAtAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best_a, best_b);
+  } else
+#endif
+  {
+    const Sphere& sphere_b = leaf_b.sphere;
+    const double reach = sphere_b.radius + contact_distance_m;
+    counters.point_tests += count_a;
+    for (std::uint32_t s = 0; s < count_a; ++s) {
+      if ((Eigen::Vector3d(ax[s], ay[s], az[s]) - sphere_b.center).squaredNorm() >= reach * reach) continue;
+      counters.point_tests += count_b;
+      const double nearest = nearestSquaredDistance(bx, by, bz, count_b, ax[s], ay[s], az[s]);
+      if (nearest < best) {
+        best = nearest;
+        best_a = s;
+      }
+    }
+    if (best_a == count_a) return false;
+    double nearest = std::numeric_limits<double>::infinity();
+    for (std::uint32_t t = 0; t < count_b; ++t) {
+      const double dx = ax[best_a] - bx[t], dy = ay[best_a] - by[t], dz = az[best_a] - bz[t];
+      const double distance_squared = dx * dx + dy * dy + dz * dz;
+      if (distance_squared < nearest) {
+        nearest = distance_squared;
+        best_b = t;
+      }
     }
   }
-  contact.point_a = a.pointIndices()[best_a];
+  contact.point_a = a.pointIndices()[leaf_a.first_point + best_a];
   contact.point_b = b.pointIndices()[leaf_b.first_point + best_b];
-  const Eigen::Vector3d& x = a.body().positions()[contact.point_a];
-  const Eigen::Vector3d& y = b.body().positions()[contact.point_b];
+  const Eigen::Vector3d x(ax[best_a], ay[best_a], az[best_a]);
+  const Eigen::Vector3d y(bx[best_b], by[best_b], bz[best_b]);
   contact.position = 0.5 * (x + y);
   contact.normal = directionFrom(y, x);
   contact.depth_m = contact_distance_m - std::sqrt(best);
   return true;
+}
+
+/// Leaves under a node at which the descent to the leaves stops: their spheres are then
+/// tested all against all, eight at a time, instead of pair by pair down the last levels.
+constexpr std::uint32_t kBucketLeaves = 8;
+
+/// The leaf contacts of two nodes of at most kBucketLeaves leaves each, every leaf sphere
+/// of one against every leaf sphere of the other.
+void collideBuckets(bool wide_vectors, SphereTree& a, const NodeState& bucket_a, SphereTree& b,
+                    const NodeState& bucket_b, double contact_distance_m,
+                    std::vector<SphereContact>& contacts, QueryCounters& counters) {
+  for (std::uint32_t k = bucket_a.first_leaf; k < bucket_a.first_leaf + bucket_a.leaf_count; ++k) {
+    a.current(a.leafNode(k));
+  }
+  for (std::uint32_t k = bucket_b.first_leaf; k < bucket_b.first_leaf + bucket_b.leaf_count; ++k) {
+    b.current(b.leafNode(k));
+  }
+  counters.node_pairs_tested += bucket_a.leaf_count * bucket_b.leaf_count;
+  const LeafSpheres& spheres_a = a.leafSpheres();
+  const LeafSpheres& spheres_b = b.leafSpheres();
+  const std::uint32_t first_b = bucket_b.first_leaf;
+  for (std::uint32_t k = bucket_a.first_leaf; k < bucket_a.first_leaf + bucket_a.leaf_count; ++k) {
+    std::uint32_t within_reach = reachMask(
+        wide_vectors, spheres_a.x[k], spheres_a.y[k], spheres_a.z[k],
+        spheres_a.radius[k] + contact_distance_m, &spheres_b.x[first_b], &spheres_b.y[first_b],
+        &spheres_b.z[first_b], &spheres_b.radius[first_b], bucket_b.leaf_count);
+    while (within_reach != 0) {
+      const std::uint32_t j = static_cast<std::uint32_t>(__builtin_ctz(within_reach));
+      within_reach &= within_reach - 1;
+      SphereContact contact;
+      contact.node_a = a.leafNode(k);
+      contact.node_b = b.leafNode(first_b + j);
+      const NodeState& leaf_a = a.current(contact.node_a);
+      const NodeState& leaf_b = b.current(contact.node_b);
+      contact.level = std::max(leaf_a.level, leaf_b.level);
+      if (closestLeafPair(wide_vectors, a, leaf_a, b, leaf_b, contact_distance_m, contact, counters)) {
+        contacts.push_back(contact);
+      }
+    }
+  }
 }
 
 /// Whether two spheres come closer than the contact distance.
@@ -103,12 +247,25 @@ bool withinReach(const Sphere& a, const Sphere& b, double contact_distance_m) {
 
 }  // namespace
 
+bool HierarchyQuery::wideVectorsAvailable() {
+#if defined(__GNUC__) && defined(__x86_64__)
+  static const bool available = __builtin_cpu_supports("avx512f");
+  return available;
+#else
+  return false;
+#endif
+}
+
+HierarchyQuery::HierarchyQuery(bool use_wide_vectors)
+    : wide_vectors_(use_wide_vectors && wideVectorsAvailable()) {}
+
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              std::vector<SphereContact>& contacts, QueryCounters& counters) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
   // Branch-free where the outcome is a coin toss: which pairs end, which are in reach.
-  const auto terminal = [level](const NodeState& node) {
-    return node.isLeaf() | (static_cast<int>(node.level) >= level);
+  const auto terminal = [level, to_leaves](const NodeState& node) {
+    return to_leaves ? node.leaf_count <= kBucketLeaves
+                     : node.isLeaf() | (static_cast<int>(node.level) >= level);
   };
   // Pairs are tested before they are stacked, so the stack holds only pairs within reach.
   ++counters.node_pairs_tested;
@@ -123,16 +280,14 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
     const bool stop_a = terminal(na);
     const bool stop_b = terminal(nb);
     if (stop_a && stop_b) {
+      if (to_leaves) {
+        collideBuckets(wide_vectors_, a, na, b, nb, contact_distance_m, contacts, counters);
+        continue;
+      }
       SphereContact contact;
       contact.node_a = ia;
       contact.node_b = ib;
       contact.level = std::max(na.level, nb.level);
-      if (to_leaves) {
-        if (closestLeafPair(a, na, b, nb, contact_distance_m, contact, counters)) {
-          contacts.push_back(contact);
-        }
-        continue;
-      }
       const Sphere& sa = na.sphere;
       const Sphere& sb = nb.sphere;
       contact.normal = directionFrom(sb.center, sa.center);

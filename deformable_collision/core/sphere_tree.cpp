@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <deque>
 #include <stdexcept>
 #include <string>
@@ -38,6 +39,7 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
   }
   exact_radius_points_ = static_cast<std::uint32_t>(config.exact_radius_points);
   build(config);
+  orderLeaves();
   states_.resize(nodes_.size());
   std::size_t most_children = 0;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -47,6 +49,8 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
     state.child_count = node.child_count;
     state.first_point = node.first_point;
     state.point_count = node.point_count;
+    state.first_leaf = node.first_leaf;
+    state.leaf_count = node.leaf_count;
     state.level = node.level;
     most_children = std::max<std::size_t>(most_children, node.child_count);
   }
@@ -140,6 +144,39 @@ void SphereTree::build(const SphereTreeConfig& config) {
   for (std::uint32_t i = 0; i < nodes_.size(); ++i) computeRestData(i);
 }
 
+void SphereTree::orderLeaves() {
+  // A node's points are a contiguous slot range, and its leaves split that range: in the
+  // order of their first slots, the leaves under any node follow each other.
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i) {
+    if (nodes_[i].isLeaf()) leaf_nodes_.push_back(i);
+  }
+  std::sort(leaf_nodes_.begin(), leaf_nodes_.end(), [&](std::uint32_t a, std::uint32_t b) {
+    return nodes_[a].first_point < nodes_[b].first_point;
+  });
+  std::vector<std::uint32_t> leaf_starts(leaf_nodes_.size());
+  for (std::uint32_t k = 0; k < leaf_nodes_.size(); ++k) leaf_starts[k] = nodes_[leaf_nodes_[k]].first_point;
+  for (SphereNode& node : nodes_) {
+    const auto first = std::lower_bound(leaf_starts.begin(), leaf_starts.end(), node.first_point);
+    const auto last = std::lower_bound(first, leaf_starts.end(), node.first_point + node.point_count);
+    node.first_leaf = static_cast<std::uint32_t>(first - leaf_starts.begin());
+    node.leaf_count = static_cast<std::uint32_t>(last - first);
+  }
+  for (auto* values : {&leaf_spheres_.x, &leaf_spheres_.y, &leaf_spheres_.z, &leaf_spheres_.radius}) {
+    values->assign(leaf_nodes_.size(), 0.0);
+  }
+}
+
+void SphereTree::setSphere(std::uint32_t index, const Sphere& sphere) {
+  NodeState& state = states_[index];
+  state.sphere = sphere;
+  state.stamp = cycle_;
+  if (state.child_count > 0) return;
+  leaf_spheres_.x[state.first_leaf] = sphere.center.x();
+  leaf_spheres_.y[state.first_leaf] = sphere.center.y();
+  leaf_spheres_.z[state.first_leaf] = sphere.center.z();
+  leaf_spheres_.radius[state.first_leaf] = sphere.radius;
+}
+
 void SphereTree::computeRestData(std::uint32_t index) {
   SphereNode& node = nodes_[index];
   const ShapeMatchingBody& body = *body_;
@@ -182,11 +219,9 @@ const NodeState& SphereTree::updateSphere(std::uint32_t index) {
   } else {
     sphere = deformationSphere(index);
   }
-  NodeState& state = states_[index];
-  state.sphere = sphere;
-  state.stamp = cycle_;
+  setSphere(index, sphere);
   ++counters_.spheres_updated;
-  return state;
+  return states_[index];
 }
 
 const SphereTree::ClusterNorms& SphereTree::norms(std::size_t cluster) {
@@ -219,15 +254,17 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
   if (node.isLeaf() || node.point_count <= exact_radius_points_) {
     // A few points are quickly measured, and their exact distance is tighter than the bound.
     // A leaf's points are gathered for the leaf-pair tests in the same pass.
+    // One square root for the farthest point: the root is correctly rounded and monotone,
+    // so this is the largest of the points' distances, bit for bit.
     const auto& positions = body_->positions();
     const bool leaf = node.isLeaf();
-    double radius = 0.0;
+    double farthest_squared = 0.0;
     for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
       const Eigen::Vector3d& x = positions[point_indices_[s]];
       if (leaf) slot_positions_.col(s) = x;
-      radius = std::max(radius, (x - sphere.center).norm());
+      farthest_squared = std::max(farthest_squared, (x - sphere.center).squaredNorm());
     }
-    sphere.radius = withRoundingMargin(radius, sphere.center);
+    sphere.radius = withRoundingMargin(std::sqrt(farthest_squared), sphere.center);
     return sphere;
   }
   const ClusterNorms& n = norms(node.cluster);
@@ -267,18 +304,17 @@ void SphereTree::refitBottomUp() {
   // Children always follow their parent in nodes_, so a backward sweep sees them first.
   for (std::uint32_t i = static_cast<std::uint32_t>(nodes_.size()); i-- > 0;) {
     const SphereNode& node = nodes_[i];
-    NodeState& state = states_[i];
     if (node.isLeaf()) {
-      state.sphere = exactSphere(i);
+      setSphere(i, exactSphere(i));
     } else {
       scratch_spheres_.clear();
       for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
         scratch_spheres_.push_back(states_[c].sphere);
       }
-      state.sphere = enclosingSphereOfSpheres(scratch_spheres_.data(), scratch_spheres_.size());
-      state.sphere.radius = withRoundingMargin(state.sphere.radius, state.sphere.center);
+      Sphere sphere = enclosingSphereOfSpheres(scratch_spheres_.data(), scratch_spheres_.size());
+      sphere.radius = withRoundingMargin(sphere.radius, sphere.center);
+      setSphere(i, sphere);
     }
-    state.stamp = cycle_;
   }
   counters_.spheres_updated = nodes_.size();
 }

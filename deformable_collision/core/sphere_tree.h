@@ -42,6 +42,10 @@ struct SphereNode {
   std::uint32_t child_count = 0;
   std::uint32_t first_point = 0;  ///< Range of the node's points in pointIndices().
   std::uint32_t point_count = 0;
+  /// Range of the leaves under the node in leaf order (SphereTree::leafNode); a leaf's
+  /// first_leaf is its own place in that order.
+  std::uint32_t first_leaf = 0;
+  std::uint32_t leaf_count = 0;
   std::int32_t cluster = -1;  ///< -1 for an object root over several clusters.
   std::uint16_t level = 0;    ///< 0 at the root.
   bool isLeaf() const { return child_count == 0; }
@@ -55,12 +59,20 @@ struct alignas(64) NodeState {
   std::uint32_t child_count = 0;
   std::uint32_t first_point = 0;
   std::uint32_t point_count = 0;
+  std::uint32_t first_leaf = 0;
+  std::uint32_t leaf_count = 0;
   std::uint16_t level = 0;
   bool isLeaf() const { return child_count == 0; }
 
  private:
   friend class SphereTree;
   std::uint32_t stamp = 0;  ///< The cycle of `sphere`.
+};
+
+/// The current spheres of a tree's leaves in leaf order, one array per coordinate, so that
+/// a leaf can be tested against several others at once.
+struct LeafSpheres {
+  std::vector<double> x, y, z, radius;
 };
 
 /// Counts of one cycle's sphere work.
@@ -104,6 +116,13 @@ class SphereTree {
     return slot_positions_;
   }
 
+  /// The leaves' current spheres by leaf order. A leaf's entry is valid once current()
+  /// returned its state in this cycle.
+  const LeafSpheres& leafSpheres() const { return leaf_spheres_; }
+  /// The node of the leaf at `ordinal` in leaf order (the order of their points): the
+  /// leaves under any node are a contiguous range of that order.
+  std::uint32_t leafNode(std::uint32_t ordinal) const { return leaf_nodes_[ordinal]; }
+
   const SphereNode& node(std::uint32_t index) const { return nodes_[index]; }
   std::size_t nodeCount() const { return nodes_.size(); }
   /// Deepest level; leaves may also sit higher in smaller clusters.
@@ -128,6 +147,8 @@ class SphereTree {
   Sphere deformationSphere(std::uint32_t index);
   Sphere exactSphere(std::uint32_t index);
   Sphere spanningSphere(std::uint32_t index);
+  void setSphere(std::uint32_t index, const Sphere& sphere);
+  void orderLeaves();
   void refitBottomUp();
 
   const ShapeMatchingBody* body_;
@@ -144,6 +165,8 @@ class SphereTree {
   /// leaf-pair tests read each coordinate of a leaf contiguously, two points per instruction
   /// with SSE2.
   Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> slot_positions_;
+  LeafSpheres leaf_spheres_;
+  std::vector<std::uint32_t> leaf_nodes_;
   std::vector<Eigen::Vector3d> scratch_points_;
   std::vector<std::uint32_t> scratch_order_;
   std::vector<Sphere> scratch_spheres_;

@@ -84,13 +84,13 @@ TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
     TwoBodies scene = randomScene(seed);
     SphereTree ta(scene.a, {2, 6});
     SphereTree tb(scene.b, {3, 4});
-    HierarchyQuery query;
     std::vector<SphereContact> contacts;
     QueryCounters counters;
     // A second cycle after the bodies moved on: nothing of the first cycle's points may
-    // stay in the trees (the leaves' gathered positions are per cycle).
-    for (int cycle = 0; cycle < 2; ++cycle) {
-      if (cycle > 0) {
+    // stay in the trees (the leaves' gathered positions are per cycle). Each cycle is
+    // queried without and, where the CPU has them, with wide vectors.
+    for (int cycle = 0; cycle < 4; ++cycle) {
+      if (cycle == 2) {
         for (ShapeMatchingBody* body : {&scene.a, &scene.b}) {
           for (int s = 0; s < 3; ++s) body->step(0.02, Eigen::Vector3d(0, 0, -1.0));
         }
@@ -99,6 +99,7 @@ TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
       ta.beginCycle(GetParam());
       tb.beginCycle(GetParam());
       contacts.clear();
+      HierarchyQuery query(cycle % 2 == 1);
       query.collide(ta, tb, std::max(ta.maxLevel(), tb.maxLevel()), contact_distance, contacts,
                     counters);
 
@@ -133,6 +134,38 @@ INSTANTIATE_TEST_SUITE_P(Methods, NoMissedContactTest,
                                return std::string("bottom_up_refit");
                            }
                          });
+
+// The wide-vector leaf tests (eight leaves or points per instruction) find the same
+// contacts as the portable ones, bit for bit, for leaves of up to eight points and larger.
+TEST(WideVectors, FindTheSameContactsBitForBit) {
+  if (!HierarchyQuery::wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
+  const double contact_distance = 0.02;
+  for (const auto& [config_a, config_b] :
+       {std::pair<SphereTreeConfig, SphereTreeConfig>{{2, 8}, {2, 5}}, {{2, 20}, {3, 13}}}) {
+    for (std::uint64_t seed = 0; seed < 6; ++seed) {
+      TwoBodies scene = randomScene(seed);
+      SphereTree ta(scene.a, config_a);
+      SphereTree tb(scene.b, config_b);
+      std::vector<SphereContact> portable;
+      std::vector<SphereContact> wide;
+      QueryCounters counters;
+      const int leaves = std::max(ta.maxLevel(), tb.maxLevel());
+      HierarchyQuery(false).collide(ta, tb, leaves, contact_distance, portable, counters);
+      HierarchyQuery(true).collide(ta, tb, leaves, contact_distance, wide, counters);
+      ASSERT_FALSE(portable.empty()) << "seed " << seed;
+      ASSERT_EQ(wide.size(), portable.size()) << "seed " << seed;
+      for (std::size_t k = 0; k < wide.size(); ++k) {
+        EXPECT_EQ(wide[k].node_a, portable[k].node_a);
+        EXPECT_EQ(wide[k].node_b, portable[k].node_b);
+        EXPECT_EQ(wide[k].point_a, portable[k].point_a);
+        EXPECT_EQ(wide[k].point_b, portable[k].point_b);
+        EXPECT_EQ(wide[k].depth_m, portable[k].depth_m);
+        EXPECT_EQ(wide[k].position, portable[k].position);
+        EXPECT_EQ(wide[k].normal, portable[k].normal);
+      }
+    }
+  }
+}
 
 TEST(LevelOfDetail, EveryLevelCoversTheClosePointPairs) {
   const double contact_distance = 0.02;

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <functional>
 #include <random>
 
@@ -51,14 +52,61 @@ TEST(SphereTreeStructure, BalancedWrappedAndOneBranchPerCluster) {
           covered += child.point_count;
           smallest = std::min(smallest, child.point_count);
           largest = std::max(largest, child.point_count);
-          if (node.cluster >= 0) EXPECT_EQ(child.cluster, node.cluster);
+          if (node.cluster >= 0) {
+            EXPECT_EQ(child.cluster, node.cluster);
+          }
         }
         EXPECT_EQ(covered, node.point_count);
-        if (node.cluster >= 0) EXPECT_LE(largest - smallest, 1u) << "balanced";
+        if (node.cluster >= 0) {
+          EXPECT_LE(largest - smallest, 1u) << "balanced";
+        }
       }
       for (int k = 0; k < clusters; ++k) {
         for (const auto i : body.cluster(k).points) {
           EXPECT_EQ(leaves_holding[k][i], 1) << "point " << i << " cluster " << k;
+        }
+      }
+    }
+  }
+}
+
+// The leaves under every node are one range of the leaf order, and a leaf's entry in the
+// leaf spheres is its current sphere, under every update method.
+TEST(SphereTreeStructure, LeavesUnderANodeAreOneRangeOfLeafOrder) {
+  for (const int clusters : {1, 3}) {
+    for (const int branching : {2, 3}) {
+      ShapeMatchingBody body(sampleEllipsoid(700, {0.5, 0.3, 0.2}, 2),
+                             configFor(DeformationMode::kQuadratic, clusters));
+      body.step(0.05, Eigen::Vector3d(0.0, 0.0, -9.81));
+      SphereTree tree(body, {branching, 5});
+      const std::function<void(std::uint32_t, std::vector<std::uint32_t>&)> leavesUnder =
+          [&](std::uint32_t index, std::vector<std::uint32_t>& leaves) {
+            const SphereNode& node = tree.node(index);
+            if (node.isLeaf()) leaves.push_back(index);
+            for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+              leavesUnder(c, leaves);
+            }
+          };
+      for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
+        std::vector<std::uint32_t> expected;
+        leavesUnder(i, expected);
+        const SphereNode& node = tree.node(i);
+        std::vector<std::uint32_t> ranged;
+        for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
+          ranged.push_back(tree.leafNode(k));
+        }
+        std::sort(expected.begin(), expected.end());
+        std::sort(ranged.begin(), ranged.end());
+        EXPECT_EQ(ranged, expected) << "node " << i;
+      }
+      for (const SphereUpdate method :
+           {SphereUpdate::kDeformation, SphereUpdate::kExactRefit, SphereUpdate::kBottomUpRefit}) {
+        tree.beginCycle(method);
+        const LeafSpheres& leaves = tree.leafSpheres();
+        for (std::uint32_t k = 0; k < tree.node(0).leaf_count; ++k) {
+          const Sphere& sphere = tree.sphere(tree.leafNode(k));
+          EXPECT_EQ(Eigen::Vector3d(leaves.x[k], leaves.y[k], leaves.z[k]), sphere.center);
+          EXPECT_EQ(leaves.radius[k], sphere.radius);
         }
       }
     }
