@@ -51,12 +51,21 @@ double nearestSquaredDistance(const double* xs, const double* ys, const double* 
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
-/// Squared distance of the nearest pair of two point sets, all pairs at once, eight of b's
-/// points per instruction. The sums are formed as in the scalar code, so both give the same
-/// bits.
-__attribute__((target("avx512f"))) double nearestPairSquaredDistanceAvx512(
+// GCC 12's AVX-512 intrinsics pass a deliberately undefined operand that its own
+// uninitialised-use warnings then report (GCC bug 105593).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#if !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
+/// Squared distance of the nearest pair of two point sets if it is below `below_squared`,
+/// all pairs at once, eight of b's points per instruction. The sums are formed as in the
+/// scalar code, so both give the same bits.
+__attribute__((target("avx512f"))) bool nearestPairSquaredDistanceAvx512(
     const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
-    const double* by, const double* bz, std::uint32_t count_b) {
+    const double* by, const double* bz, std::uint32_t count_b, double below_squared,
+    double& nearest_squared) {
   __m512d nearest = _mm512_set1_pd(std::numeric_limits<double>::infinity());
   for (std::uint32_t t = 0; t < count_b; t += 8) {
     const __mmask8 lanes = count_b - t >= 8 ? 0xFF : static_cast<__mmask8>((1u << (count_b - t)) - 1);
@@ -72,9 +81,13 @@ __attribute__((target("avx512f"))) double nearestPairSquaredDistanceAvx512(
       nearest = _mm512_mask_min_pd(nearest, lanes, nearest, squared);
     }
   }
-  alignas(64) double lanes[8];
-  _mm512_store_pd(lanes, nearest);
-  return *std::min_element(lanes, lanes + 8);
+  // Most leaf pairs in reach have no pair close enough: they end on one comparison.
+  if (_mm512_cmp_pd_mask(nearest, _mm512_set1_pd(below_squared), _CMP_LT_OQ) == 0) return false;
+  nearest = _mm512_min_pd(nearest, _mm512_shuffle_f64x2(nearest, nearest, 0x4E));
+  nearest = _mm512_min_pd(nearest, _mm512_shuffle_f64x2(nearest, nearest, 0xB1));
+  nearest = _mm512_min_pd(nearest, _mm512_shuffle_pd(nearest, nearest, 0x55));
+  nearest_squared = _mm512_cvtsd_f64(nearest);
+  return true;
 }
 
 /// The first pair, a's points in order and then b's, at `squared_distance` (one that
@@ -117,15 +130,18 @@ __attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(
   return _mm512_mask_cmp_pd_mask(lanes, squared, _mm512_mul_pd(reach, reach), _CMP_LT_OQ);
 }
 
+#pragma GCC diagnostic pop
 #endif
 
 /// Bit j set if sphere j of the `count` (<= 8) given by coordinate arrays comes within
 /// `reach_m` plus its radius of (x, y, z).
-std::uint32_t reachMask(bool wide_vectors, double x, double y, double z, double reach_m,
-                        const double* xs, const double* ys, const double* zs, const double* radii,
-                        std::uint32_t count) {
+template <bool Wide>
+[[gnu::always_inline]] inline std::uint32_t reachMask(double x, double y, double z, double reach_m,
+                                                      const double* xs, const double* ys,
+                                                      const double* zs, const double* radii,
+                                                      std::uint32_t count) {
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (wide_vectors) return reachMaskAvx512(x, y, z, reach_m, xs, ys, zs, radii, count);
+  if constexpr (Wide) return reachMaskAvx512(x, y, z, reach_m, xs, ys, zs, radii, count);
 #endif
   std::uint32_t mask = 0;
   for (std::uint32_t j = 0; j < count; ++j) {
@@ -138,9 +154,11 @@ std::uint32_t reachMask(bool wide_vectors, double x, double y, double z, double 
 
 /// Closest point pair of two leaves closer than the contact distance, if any: all pairs at
 /// once with wide vectors; otherwise the points of a near b's sphere, each against b's.
-bool closestLeafPair(bool wide_vectors, const SphereTree& a, const NodeState& leaf_a,
-                     const SphereTree& b, const NodeState& leaf_b, double contact_distance_m,
-                     SphereContact& contact, QueryCounters& counters) {
+template <bool Wide>
+[[gnu::always_inline]] inline bool closestLeafPair(const SphereTree& a, const NodeState& leaf_a,
+                                                   const SphereTree& b, const NodeState& leaf_b,
+                                                   double contact_distance_m, SphereContact& contact,
+                                                   QueryCounters& counters) {
   const std::uint32_t count_b = leaf_b.point_count;
   const auto& pa = a.leafPositions();
   const auto& pb = b.leafPositions();
@@ -157,11 +175,11 @@ bool closestLeafPair(bool wide_vectors, const SphereTree& a, const NodeState& le
   std::uint32_t best_a = count_a;
   std::uint32_t best_b = 0;
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (wide_vectors) {
+  if constexpr (Wide) {
     counters.point_tests += count_a * count_b;
-    const double nearest = nearestPairSquaredDistanceAvx512(ax, ay, az, count_a, bx, by, bz, count_b);
-    if (!(nearest < best)) return false;
-    best = nearest;
+    if (!nearestPairSquaredDistanceAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best)) {
+      return false;
+    }
     firstPairAtAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best_a, best_b);
   } else
 #endif
@@ -205,9 +223,12 @@ constexpr std::uint32_t kBucketLeaves = 8;
 
 /// The leaf contacts of two nodes of at most kBucketLeaves leaves each, every leaf sphere
 /// of one against every leaf sphere of the other.
-void collideBuckets(bool wide_vectors, SphereTree& a, const NodeState& bucket_a, SphereTree& b,
-                    const NodeState& bucket_b, double contact_distance_m,
-                    std::vector<SphereContact>& contacts, QueryCounters& counters) {
+template <bool Wide>
+[[gnu::always_inline]] inline void collideBuckets(SphereTree& a, const NodeState& bucket_a,
+                                                  SphereTree& b, const NodeState& bucket_b,
+                                                  double contact_distance_m,
+                                                  std::vector<SphereContact>& contacts,
+                                                  QueryCounters& counters) {
   for (std::uint32_t k = bucket_a.first_leaf; k < bucket_a.first_leaf + bucket_a.leaf_count; ++k) {
     a.current(a.leafNode(k));
   }
@@ -219,8 +240,8 @@ void collideBuckets(bool wide_vectors, SphereTree& a, const NodeState& bucket_a,
   const LeafSpheres& spheres_b = b.leafSpheres();
   const std::uint32_t first_b = bucket_b.first_leaf;
   for (std::uint32_t k = bucket_a.first_leaf; k < bucket_a.first_leaf + bucket_a.leaf_count; ++k) {
-    std::uint32_t within_reach = reachMask(
-        wide_vectors, spheres_a.x[k], spheres_a.y[k], spheres_a.z[k],
+    std::uint32_t within_reach = reachMask<Wide>(
+        spheres_a.x[k], spheres_a.y[k], spheres_a.z[k],
         spheres_a.radius[k] + contact_distance_m, &spheres_b.x[first_b], &spheres_b.y[first_b],
         &spheres_b.z[first_b], &spheres_b.radius[first_b], bucket_b.leaf_count);
     while (within_reach != 0) {
@@ -232,11 +253,26 @@ void collideBuckets(bool wide_vectors, SphereTree& a, const NodeState& bucket_a,
       const NodeState& leaf_a = a.current(contact.node_a);
       const NodeState& leaf_b = b.current(contact.node_b);
       contact.level = std::max(leaf_a.level, leaf_b.level);
-      if (closestLeafPair(wide_vectors, a, leaf_a, b, leaf_b, contact_distance_m, contact, counters)) {
+      if (closestLeafPair<Wide>(a, leaf_a, b, leaf_b, contact_distance_m, contact, counters)) {
         contacts.push_back(contact);
       }
     }
   }
+}
+
+/// collideBuckets compiled for the wide vectors, its kernels inlined into it; and without.
+#if defined(__GNUC__) && defined(__x86_64__)
+__attribute__((target("avx512f"))) void collideBucketsWide(
+    SphereTree& a, const NodeState& bucket_a, SphereTree& b, const NodeState& bucket_b,
+    double contact_distance_m, std::vector<SphereContact>& contacts, QueryCounters& counters) {
+  collideBuckets<true>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+}
+#endif
+
+void collideBucketsPortable(SphereTree& a, const NodeState& bucket_a, SphereTree& b,
+                            const NodeState& bucket_b, double contact_distance_m,
+                            std::vector<SphereContact>& contacts, QueryCounters& counters) {
+  collideBuckets<false>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
 }
 
 /// Whether two spheres come closer than the contact distance.
@@ -281,7 +317,13 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
     const bool stop_b = terminal(nb);
     if (stop_a && stop_b) {
       if (to_leaves) {
-        collideBuckets(wide_vectors_, a, na, b, nb, contact_distance_m, contacts, counters);
+#if defined(__GNUC__) && defined(__x86_64__)
+        if (wide_vectors_) {
+          collideBucketsWide(a, na, b, nb, contact_distance_m, contacts, counters);
+          continue;
+        }
+#endif
+        collideBucketsPortable(a, na, b, nb, contact_distance_m, contacts, counters);
         continue;
       }
       SphereContact contact;
