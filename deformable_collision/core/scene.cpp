@@ -314,10 +314,11 @@ void Scene::cycle() {
   refreshStaleTrees();
   stats_.level = level();
   contacts_.clear();
+  contact_runs_.clear();
   query_counters_ = QueryCounters{};
   std::size_t spheres_before = 0;
   for (const auto& object : objects_) spheres_before += object->tree.counters().spheres_updated;
-  detect(stats_.level, std::nullopt, std::nullopt, contacts_);
+  detect(stats_.level, std::nullopt, std::nullopt, contacts_, &contact_runs_);
   std::size_t spheres_after = 0;
   for (const auto& object : objects_) spheres_after += object->tree.counters().spheres_updated;
   const auto detected = Clock::now();
@@ -381,7 +382,7 @@ void Scene::sweepAndPrune() {
 }
 
 void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
-                   std::vector<SceneContact>& contacts) {
+                   std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs) {
   sweepAndPrune();
   const auto matches = [&](std::size_t a, std::size_t b) {
     const bool a_ok = !only_a || *only_a == a;
@@ -399,6 +400,8 @@ void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<s
     pair_contacts_.clear();
     query_.collide(objects_[first]->tree, objects_[second]->tree, level,
                    config_.contact_distance_m, pair_contacts_, query_counters_);
+    if (pair_contacts_.empty()) continue;
+    if (runs) runs->push_back({first, second, contacts.size(), contacts.size() + pair_contacts_.size()});
     for (const auto& contact : pair_contacts_) contacts.push_back({first, second, contact});
   }
 }
@@ -408,22 +411,16 @@ void Scene::rankSupport() {
   // Adjacency of the touching pairs (contacts come grouped by pair), in compressed rows.
   const std::size_t count = objects_.size();
   neighbour_offsets_.assign(count + 1, 0);
-  touching_pairs_.clear();
-  for (std::size_t k = 0; k < contacts_.size(); ++k) {
-    if (k > 0 && contacts_[k].object_a == contacts_[k - 1].object_a &&
-        contacts_[k].object_b == contacts_[k - 1].object_b) {
-      continue;
-    }
-    touching_pairs_.emplace_back(contacts_[k].object_a, contacts_[k].object_b);
-    ++neighbour_offsets_[contacts_[k].object_a + 1];
-    ++neighbour_offsets_[contacts_[k].object_b + 1];
+  for (const ContactRun& run : contact_runs_) {
+    ++neighbour_offsets_[run.object_a + 1];
+    ++neighbour_offsets_[run.object_b + 1];
   }
   for (std::size_t i = 0; i < count; ++i) neighbour_offsets_[i + 1] += neighbour_offsets_[i];
   neighbours_.resize(neighbour_offsets_[count]);
   neighbour_fill_.assign(neighbour_offsets_.begin(), neighbour_offsets_.end() - 1);
-  for (const auto& [a, b] : touching_pairs_) {
-    neighbours_[neighbour_fill_[a]++] = b;
-    neighbours_[neighbour_fill_[b]++] = a;
+  for (const ContactRun& run : contact_runs_) {
+    neighbours_[neighbour_fill_[run.object_a]++] = run.object_b;
+    neighbours_[neighbour_fill_[run.object_b]++] = run.object_a;
   }
   // Breadth-first from the fixed objects.
   support_queue_.clear();
@@ -462,18 +459,10 @@ void Scene::respond() {
   // dents where it touches most. Velocity corrections of single nodes, tried first, do not
   // survive the next goal step: it spreads them over the object, so a resting object
   // sinks, or, cancelling the motion the goals give the pushed points, bounces.
-  for (std::size_t run_begin = 0; run_begin < contacts_.size();) {
-    const std::uint32_t index_a = contacts_[run_begin].object_a;
-    const std::uint32_t index_b = contacts_[run_begin].object_b;
-    std::size_t run_end = run_begin;
-    while (run_end < contacts_.size() && contacts_[run_end].object_a == index_a &&
-           contacts_[run_end].object_b == index_b) {
-      ++run_end;
-    }
-    Object& a = *objects_[index_a];
-    Object& b = *objects_[index_b];
-    if (a.dynamic() || b.dynamic()) resolvePair(a, b, index_a, index_b, run_begin, run_end);
-    run_begin = run_end;
+  for (const ContactRun& run : contact_runs_) {
+    Object& a = *objects_[run.object_a];
+    Object& b = *objects_[run.object_b];
+    if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
   }
   for (auto& object : objects_) {
     object->velocity_after = object->dynamic()
@@ -751,7 +740,7 @@ void Scene::contactsAt(int level, std::optional<std::size_t> object_a,
   const QueryCounters kept_counters = query_counters_;
   refreshStaleTrees();
   contacts.clear();
-  detect(level, object_a, object_b, contacts);
+  detect(level, object_a, object_b, contacts, nullptr);
   stats_ = kept;
   query_counters_ = kept_counters;
 }

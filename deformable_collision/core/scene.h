@@ -141,8 +141,17 @@ class Scene {
                                      std::vector<Eigen::Vector3d> rest_points_m) const;
   void refreshStaleTrees();
   void sweepAndPrune();
+  /// The contacts of one object pair: contacts[begin, end).
+  struct ContactRun {
+    std::uint32_t object_a = 0;
+    std::uint32_t object_b = 0;
+    std::size_t begin = 0;
+    std::size_t end = 0;
+  };
+
+  /// Appends the contacts at `level` and, if `runs` is given, where each pair's begin.
   void detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
-              std::vector<SceneContact>& contacts);
+              std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
   void respond();
   void rankSupport();
   void resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
@@ -166,7 +175,7 @@ class Scene {
   std::vector<SceneContact> contacts_;
   std::vector<ContactPush> pushes_;
   std::vector<std::uint32_t> support_queue_;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> touching_pairs_;
+  std::vector<ContactRun> contact_runs_;  ///< The pairs of contacts_, in its order.
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
