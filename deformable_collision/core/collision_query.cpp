@@ -281,6 +281,11 @@ bool withinReach(const Sphere& a, const Sphere& b, double contact_distance_m) {
   return (a.center - b.center).squaredNorm() < reach * reach;
 }
 
+/// How far two spheres, each grown by half the contact distance, overlap.
+double overlap(const Sphere& a, const Sphere& b, double contact_distance_m) {
+  return a.radius + b.radius + contact_distance_m - (a.center - b.center).norm();
+}
+
 }  // namespace
 
 bool HierarchyQuery::wideVectorsAvailable() {
@@ -306,11 +311,15 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
   // Pairs are tested before they are stacked, so the stack holds only pairs within reach.
   ++counters.node_pairs_tested;
   if (!withinReach(a.sphere(0), b.sphere(0), contact_distance_m)) return;
+  // Above the leaves a pair carries the least overlap of its own and its ancestors'
+  // spheres: all of them bound its points, so their overlap is at most that. A contact's
+  // depth is then one that the response can clear without the pair's ancestors leaving
+  // reach first, which would end the contact above where it rests.
   if (stack_.empty()) stack_.resize(1);
-  stack_[0] = {0, 0};
+  stack_[0] = {0, 0, to_leaves ? 0.0 : overlap(a.sphere(0), b.sphere(0), contact_distance_m)};
   std::size_t stacked = 1;
   while (stacked > 0) {
-    const auto [ia, ib] = stack_[--stacked];
+    const auto [ia, ib, least_overlap] = stack_[--stacked];
     const NodeState& na = a.current(ia);
     const NodeState& nb = b.current(ib);
     const bool stop_a = terminal(na);
@@ -333,8 +342,7 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
       const Sphere& sa = na.sphere;
       const Sphere& sb = nb.sphere;
       contact.normal = directionFrom(sb.center, sa.center);
-      const double distance = (sa.center - sb.center).norm();
-      contact.depth_m = sa.radius + sb.radius + contact_distance_m - distance;
+      contact.depth_m = least_overlap;
       // Midway between the surfaces (grown by half the contact distance each) along the normal.
       const Eigen::Vector3d surface_a = sa.center - (sa.radius + 0.5 * contact_distance_m) * contact.normal;
       const Eigen::Vector3d surface_b = sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
@@ -353,13 +361,19 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
     counters.node_pairs_tested += split.child_count;
     if (split_a) {
       for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
-        stack_[stacked] = {c, ib};
-        stacked += withinReach(a.sphere(c), nb.sphere, contact_distance_m);
+        const Sphere& child = a.sphere(c);
+        stack_[stacked] = {c, ib, to_leaves ? 0.0
+                                            : std::min(least_overlap,
+                                                       overlap(child, nb.sphere, contact_distance_m))};
+        stacked += withinReach(child, nb.sphere, contact_distance_m);
       }
     } else {
       for (std::uint32_t c = nb.first_child + nb.child_count; c-- > nb.first_child;) {
-        stack_[stacked] = {ia, c};
-        stacked += withinReach(na.sphere, b.sphere(c), contact_distance_m);
+        const Sphere& child = b.sphere(c);
+        stack_[stacked] = {ia, c, to_leaves ? 0.0
+                                            : std::min(least_overlap,
+                                                       overlap(na.sphere, child, contact_distance_m))};
+        stacked += withinReach(na.sphere, child, contact_distance_m);
       }
     }
   }

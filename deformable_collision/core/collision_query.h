@@ -44,7 +44,8 @@ class HierarchyQuery {
 
   /// Appends to `contacts` the node pairs of trees `a` and `b` at `level` (0: the roots;
   /// a node that is a leaf above `level` stands for itself) whose spheres come closer
-  /// than `contact_distance_m`. With `level` >= both trees' maxLevel() the query runs to
+  /// than `contact_distance_m`; such a contact's depth is the least overlap of its spheres
+  /// and its ancestors' (grown by half the contact distance each). With `level` >= both trees' maxLevel() the query runs to
   /// the leaves and tests points: a leaf pair is a contact if and only if one of its
   /// point pairs is closer than `contact_distance_m`, so the contacts cover exactly the
   /// point pairs that brute force finds; there, nodes of up to eight leaves test their
@@ -54,8 +55,15 @@ class HierarchyQuery {
                std::vector<SphereContact>& contacts, QueryCounters& counters);
 
  private:
+  /// A node pair within reach, waiting to be visited.
+  struct PendingPair {
+    std::uint32_t node_a = 0;
+    std::uint32_t node_b = 0;
+    double least_overlap_m = 0.0;  ///< Above the leaves: see collide().
+  };
+
   bool wide_vectors_ = false;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> stack_;
+  std::vector<PendingPair> stack_;
 };
 
 }  // namespace deformable_collision

@@ -131,29 +131,28 @@ INSTANTIATE_TEST_SUITE_P(Levels, RestingBoxTest, ::testing::Values(0, 1, 2, 4, 6
 
 // ---------------------------------------------------------------------------------------
 // A stiff stack (alpha = 1) at a long step (h = 0.05 s): three boxes dropped onto each other
-// on a floor stand still for 1000 cycles, in every mode, at the finest and at coarse and
-// middle levels. At this step gravity alone takes a resting box 2.5 cm down per cycle, more
-// than the contact distance, and a pushed box walks sideways by its contact normals' tilt
-// unless friction holds it. (At levels 2 to 4 the top box still slides off as it lands;
-// see the issue notes.)
+// on a floor stand still for 1000 cycles, in every mode and at every level. At this step
+// gravity alone takes a resting box 2.5 cm down per cycle, more than the contact distance,
+// and a pushed box walks sideways by its contact normals' tilt unless friction holds it.
+// At coarse levels a contact must not end before the push that clears it is done, or the
+// top box hops and slides off.
 
-struct StackCase {
+struct StackMode {
   const char* name;
   DeformationMode mode;
   int clusters;
-  int level;  ///< -1: the finest.
 };
 
-void PrintTo(const StackCase& c, std::ostream* os) { *os << c.name; }
+void PrintTo(const StackMode& m, std::ostream* os) { *os << m.name; }
 
-class StiffStackTest : public ::testing::TestWithParam<StackCase> {};
+class StiffStackTest : public ::testing::TestWithParam<std::tuple<StackMode, int>> {};
 
 TEST_P(StiffStackTest, StandsStillForAThousandLongSteps) {
-  const StackCase& c = GetParam();
+  const auto& [c, level] = GetParam();
   SceneConfig config;
   config.contact_distance_m = 0.02;
   config.dt_s = 0.05;
-  config.level = c.level;
+  config.level = level;
   Scene scene(config);
   ObjectConfig floor;
   floor.name = "floor";
@@ -201,14 +200,16 @@ TEST_P(StiffStackTest, StandsStillForAThousandLongSteps) {
 }
 
 INSTANTIATE_TEST_SUITE_P(
-    Cases, StiffStackTest,
-    ::testing::Values(StackCase{"rigid_finest", DeformationMode::kRigid, 1, -1},
-                      StackCase{"rigid_level_1", DeformationMode::kRigid, 1, 1},
-                      StackCase{"linear_finest", DeformationMode::kLinear, 1, -1},
-                      StackCase{"linear_2_clusters_level_6", DeformationMode::kLinear, 2, 6},
-                      StackCase{"quadratic_3_clusters_finest", DeformationMode::kQuadratic, 3, -1},
-                      StackCase{"quadratic_level_0", DeformationMode::kQuadratic, 1, 0}),
-    [](const auto& info) { return std::string(info.param.name); });
+    ModesAndLevels, StiffStackTest,
+    ::testing::Combine(::testing::Values(StackMode{"rigid", DeformationMode::kRigid, 1},
+                                         StackMode{"linear_2_clusters", DeformationMode::kLinear, 2},
+                                         StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}),
+                       ::testing::Values(0, 1, 2, 3, 4, 6, -1)),
+    [](const auto& info) {
+      const int level = std::get<1>(info.param);
+      return std::string(std::get<0>(info.param).name) +
+             (level < 0 ? std::string("_finest") : "_level_" + std::to_string(level));
+    });
 
 // ---------------------------------------------------------------------------------------
 // Built-in scenes, small: nothing becomes NaN, nothing runs away, nothing goes through the
