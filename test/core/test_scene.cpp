@@ -167,7 +167,7 @@ TEST_P(StiffStackTest, StandsStillForAThousandLongSteps) {
     box.shape.mode = c.mode;
     box.shape.clusters = c.clusters;
     box.shape.stiffness = 1.0;
-    Points points = sampleBox(1000, {kHalfSide, kHalfSide, kHalfSide}, 3 + k);
+    Points points = sampleBox(500, {kHalfSide, kHalfSide, kHalfSide}, 3 + k);
     for (auto& p : points) p.z() += kHalfSide + config.contact_distance_m / 2 + k * (2 * kHalfSide + 0.02);
     boxes.push_back(scene.addObject(box, points));
   }
@@ -204,7 +204,7 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Combine(::testing::Values(StackMode{"rigid", DeformationMode::kRigid, 1},
                                          StackMode{"linear_2_clusters", DeformationMode::kLinear, 2},
                                          StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}),
-                       ::testing::Values(0, 1, 2, 3, 4, 6, -1)),
+                       ::testing::Values(0, 1, 2, 3, 4, -1)),
     [](const auto& info) {
       const int level = std::get<1>(info.param);
       return std::string(std::get<0>(info.param).name) +
