@@ -683,7 +683,9 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   // this push. A resting object is pushed back each cycle by what gravity moved it, along
   // normals that are never exact (fitted planes, nearest point pairs), and without this it
   // walks sideways, by a normal's tilt times g h^2 per cycle. Sliding contacts are left to
-  // the velocity friction above.
+  // the velocity friction above. Only where one side holds (fixed, or nearer to a support):
+  // between two objects carried alike, taking the slip back moves both against supports
+  // this pass does not see; a bar leaning on a ball lifted the ball off the floor.
   const Eigen::Vector3d step_a =
       a.dynamic() ? Eigen::Vector3d(config_.dt_s * a.body.meanVelocity()) : Eigen::Vector3d::Zero();
   const Eigen::Vector3d step_b =
@@ -692,7 +694,8 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
       (step_a + translation_before_a + mean_a) - (step_b + translation_before_b + mean_b);
   const Eigen::Vector3d slip = moved - moved.dot(normal) * normal;
   const double pressed = (mean_a - mean_b).dot(normal);
-  if (slip.norm() <= config_.friction * pressed) {
+  const bool one_side_holds = share_a == 0.0 || share_a == 1.0;
+  if (one_side_holds && slip.norm() <= config_.friction * pressed) {
     mean_a -= share_a * slip;
     mean_b += (1.0 - share_a) * slip;
   }
