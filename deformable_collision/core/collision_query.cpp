@@ -59,26 +59,37 @@ double nearestSquaredDistance(const double* xs, const double* ys, const double* 
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 
+/// Squared distances from (x, y, z) to eight points given by their coordinates, summed as
+/// the scalar code sums them, so both give the same bits.
+__attribute__((target("avx512f"))) inline __m512d squaredDistancesAvx512(double x, double y,
+                                                                         double z, __m512d xs,
+                                                                         __m512d ys, __m512d zs) {
+  const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(x), xs);
+  const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(y), ys);
+  const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(z), zs);
+  return _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+}
+
+/// The lanes of the up to eight values from `offset` on of `count`.
+inline __mmask8 lanesFrom(std::uint32_t offset, std::uint32_t count) {
+  return count - offset >= 8 ? 0xFF : static_cast<__mmask8>((1u << (count - offset)) - 1);
+}
+
 /// Squared distance of the nearest pair of two point sets if it is below `below_squared`,
-/// all pairs at once, eight of b's points per instruction. The sums are formed as in the
-/// scalar code, so both give the same bits.
+/// all pairs at once, eight of b's points per instruction.
 __attribute__((target("avx512f"))) bool nearestPairSquaredDistanceAvx512(
     const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
     const double* by, const double* bz, std::uint32_t count_b, double below_squared,
     double& nearest_squared) {
   __m512d nearest = _mm512_set1_pd(std::numeric_limits<double>::infinity());
   for (std::uint32_t t = 0; t < count_b; t += 8) {
-    const __mmask8 lanes = count_b - t >= 8 ? 0xFF : static_cast<__mmask8>((1u << (count_b - t)) - 1);
+    const __mmask8 lanes = lanesFrom(t, count_b);
     const __m512d x = _mm512_maskz_loadu_pd(lanes, bx + t);
     const __m512d y = _mm512_maskz_loadu_pd(lanes, by + t);
     const __m512d z = _mm512_maskz_loadu_pd(lanes, bz + t);
     for (std::uint32_t s = 0; s < count_a; ++s) {
-      const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(ax[s]), x);
-      const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(ay[s]), y);
-      const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(az[s]), z);
-      const __m512d squared =
-          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
-      nearest = _mm512_mask_min_pd(nearest, lanes, nearest, squared);
+      nearest = _mm512_mask_min_pd(nearest, lanes, nearest,
+                                   squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z));
     }
   }
   // Most leaf pairs in reach have no pair close enough: they end on one comparison.
@@ -99,12 +110,10 @@ __attribute__((target("avx512f"))) void firstPairAtAvx512(
   const __m512d target = _mm512_set1_pd(squared_distance);
   for (std::uint32_t s = 0; s < count_a; ++s) {
     for (std::uint32_t t = 0; t < count_b; t += 8) {
-      const __mmask8 lanes = count_b - t >= 8 ? 0xFF : static_cast<__mmask8>((1u << (count_b - t)) - 1);
-      const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(ax[s]), _mm512_maskz_loadu_pd(lanes, bx + t));
-      const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(ay[s]), _mm512_maskz_loadu_pd(lanes, by + t));
-      const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(az[s]), _mm512_maskz_loadu_pd(lanes, bz + t));
-      const __m512d squared =
-          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      const __mmask8 lanes = lanesFrom(t, count_b);
+      const __m512d squared = squaredDistancesAvx512(
+          ax[s], ay[s], az[s], _mm512_maskz_loadu_pd(lanes, bx + t),
+          _mm512_maskz_loadu_pd(lanes, by + t), _mm512_maskz_loadu_pd(lanes, bz + t));
       const std::uint32_t equal = _mm512_mask_cmp_pd_mask(lanes, squared, target, _CMP_EQ_OQ);
       if (equal != 0) {
         offset_a = s;
@@ -115,17 +124,14 @@ __attribute__((target("avx512f"))) void firstPairAtAvx512(
   }
 }
 
-/// Bit j set if sphere j of the `count` (<= 8) given by coordinate arrays comes within
-/// `reach_m` plus its radius of (x, y, z).
+/// reachMask, eight spheres per instruction.
 __attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(
     double x, double y, double z, double reach_m, const double* xs, const double* ys,
     const double* zs, const double* radii, std::uint32_t count) {
-  const __mmask8 lanes = static_cast<__mmask8>((1u << count) - 1);
-  const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(x), _mm512_maskz_loadu_pd(lanes, xs));
-  const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(y), _mm512_maskz_loadu_pd(lanes, ys));
-  const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(z), _mm512_maskz_loadu_pd(lanes, zs));
+  const __mmask8 lanes = lanesFrom(0, count);
   const __m512d squared =
-      _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      squaredDistancesAvx512(x, y, z, _mm512_maskz_loadu_pd(lanes, xs),
+                             _mm512_maskz_loadu_pd(lanes, ys), _mm512_maskz_loadu_pd(lanes, zs));
   const __m512d reach = _mm512_add_pd(_mm512_maskz_loadu_pd(lanes, radii), _mm512_set1_pd(reach_m));
   return _mm512_mask_cmp_pd_mask(lanes, squared, _mm512_mul_pd(reach, reach), _CMP_LT_OQ);
 }
