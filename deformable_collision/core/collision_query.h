@@ -45,12 +45,12 @@ class HierarchyQuery {
   /// Appends to `contacts` the node pairs of trees `a` and `b` at `level` (0: the roots;
   /// a node that is a leaf above `level` stands for itself) whose spheres come closer
   /// than `contact_distance_m`; such a contact's depth is the least overlap of its spheres
-  /// and its ancestors' (grown by half the contact distance each). With `level` >= both trees' maxLevel() the query runs to
-  /// the leaves and tests points: a leaf pair is a contact if and only if one of its
-  /// point pairs is closer than `contact_distance_m`, so the contacts cover exactly the
-  /// point pairs that brute force finds; there, nodes of up to eight leaves test their
-  /// leaves' spheres all against all rather than descending pair by pair. Spheres are
-  /// computed lazily (SphereTree::sphere).
+  /// and its ancestors' (grown by half the contact distance each). With `level` >= both
+  /// trees' maxLevel() the query runs to the leaves and tests points: a leaf pair is a
+  /// contact if and only if one of its point pairs is closer than `contact_distance_m`, so
+  /// the contacts cover exactly the point pairs that brute force finds; there, nodes of up
+  /// to eight leaves test their leaves' spheres all against all rather than descending pair
+  /// by pair. Spheres are computed lazily (SphereTree::sphere).
   void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                std::vector<SphereContact>& contacts, QueryCounters& counters);
 

@@ -408,7 +408,7 @@ void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<s
 
 void Scene::rankSupport() {
   constexpr std::uint32_t kUnsupported = std::numeric_limits<std::uint32_t>::max();
-  // Adjacency of the touching pairs (contacts come grouped by pair), in compressed rows.
+  // Adjacency of the touching pairs (the contact runs), in compressed rows.
   const std::size_t count = objects_.size();
   neighbour_offsets_.assign(count + 1, 0);
   for (const ContactRun& run : contact_runs_) {
@@ -678,7 +678,7 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   const double inverse_b =
       b.dynamic() && b.support_depth >= a.support_depth ? 1.0 / b.body.config().mass_kg : 0.0;
   const double share_a = inverse_a / (inverse_a + inverse_b);
-  // Static friction on the positions: what the pair slid along its normal over the cycle,
+  // Static friction on the positions: what the pair slid across its normal over the cycle,
   // the step and every push so far, is taken back while it is inside the friction cone of
   // this push. A resting object is pushed back each cycle by what gravity moved it, along
   // normals that are never exact (fitted planes, nearest point pairs), and without this it

@@ -149,7 +149,8 @@ class Scene {
     std::size_t end = 0;
   };
 
-  /// Appends the contacts at `level` and, if `runs` is given, where each pair's begin.
+  /// Appends the contacts at `level` and, if `runs` is given, each object pair's range of
+  /// them.
   void detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
               std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
   void respond();

@@ -162,8 +162,8 @@ class SphereTree {
   std::vector<NodeState> states_;
   std::vector<ClusterNorms> cluster_norms_;
   /// Visited leaves' positions in slot order, copied where a leaf's sphere is computed: the
-  /// leaf-pair tests read each coordinate of a leaf contiguously, two points per instruction
-  /// with SSE2.
+  /// leaf-pair tests read each coordinate of a leaf contiguously, several points per
+  /// instruction.
   Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> slot_positions_;
   LeafSpheres leaf_spheres_;
   std::vector<std::uint32_t> leaf_nodes_;
