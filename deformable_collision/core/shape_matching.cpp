@@ -500,8 +500,7 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
       }
     }
   }
-  cluster_displacement_scratch_.assign(clusters_.size(), 0.0);
-  cluster_touched_scratch_.assign(clusters_.size(), 0);
+  displaced_moments_scratch_.assign(clusters_.size(), DisplacedMoments{});
 
   deformations_.resize(clusters_.size());
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
@@ -843,36 +842,64 @@ void ShapeMatchingBody::measureFitResiduals() {
 template <DeformationMode Mode>
 void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>& displacements) {
   constexpr int K = kFeatureCount<Mode>;
+  // With p = x - reference, a point moved by dx with its velocity changed by dv adds to the
+  // sums w dx, w dx q~^T, w dv, w ((p + dx) x dv + dx x v) and
+  // w ((p + dx)(p + dx)^T - p p^T) = w (h dx^T + dx h^T) with h = p + dx / 2.
   for (const auto& d : displacements) {
-    const Eigen::Vector3d& dx = d.displacement_m;
-    const Eigen::Vector3d& dv = d.velocity_change_mps;
-    Eigen::Vector3d& x = positions_[d.point];
-    Eigen::Vector3d& v = velocities_[d.point];
+    const double* dx = d.displacement_m.data();
+    const double* dv = d.velocity_change_mps.data();
+    double* x = positions_[d.point].data();
+    double* v = velocities_[d.point].data();
+    const double dx_squared = dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2];
     for (std::uint32_t m = point_slot_offsets_[d.point]; m < point_slot_offsets_[d.point + 1]; ++m) {
       const auto [k, slot] = point_slots_[m];
-      ClusterSums& sums = cluster_sums_[k];
+      DisplacedMoments& added = displaced_moments_scratch_[k];
+      const Eigen::Vector3d& reference = cluster_sums_[k].reference;
       const double w = slotWeightKg(clusters_[k], slot, point_mass_kg_);
-      const Eigen::Vector3d p = x - sums.reference;
-      const Eigen::Vector3d moved = p + dx;
-      const Eigen::Vector3d moved_velocity = v + dv;
-      sums.offset += w * dx;
-      sums.offset_features.template leftCols<K>().noalias() +=
-          (w * dx) * featuresOf<K>(clusters_[k].rest_offsets[slot]).transpose();
-      sums.momentum += w * dv;
-      sums.angular_momentum += w * (moved.cross(moved_velocity) - p.cross(v));
-      sums.second_moment += w * (moved * moved.transpose() - p * p.transpose());
-      cluster_touched_scratch_[k] = 1;
-      cluster_displacement_scratch_[k] = std::max(cluster_displacement_scratch_[k], dx.norm());
+      double f[K];
+      featureArray<K>(clusters_[k].rest_offsets[slot], f);
+      double moved[3];
+      double half[3];
+      for (int r = 0; r < 3; ++r) {
+        const double p = x[r] - reference[r];
+        moved[r] = p + dx[r];
+        half[r] = w * (p + 0.5 * dx[r]);
+        const double w_dx = w * dx[r];
+        added.offset[r] += w_dx;
+        added.momentum[r] += w * dv[r];
+        for (int c = 0; c < K; ++c) added.offset_features[r][c] += w_dx * f[c];
+      }
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) added.half_second_moment[r][c] += half[r] * dx[c];
+      }
+      added.angular_momentum[0] += w * (moved[1] * dv[2] - moved[2] * dv[1] + dx[1] * v[2] - dx[2] * v[1]);
+      added.angular_momentum[1] += w * (moved[2] * dv[0] - moved[0] * dv[2] + dx[2] * v[0] - dx[0] * v[2]);
+      added.angular_momentum[2] += w * (moved[0] * dv[1] - moved[1] * dv[0] + dx[0] * v[1] - dx[1] * v[0]);
+      added.largest_squared_m2 = std::max(added.largest_squared_m2, dx_squared);
+      added.touched = true;
     }
-    x += dx;
-    v += dv;
+    for (int r = 0; r < 3; ++r) {
+      x[r] += dx[r];
+      v[r] += dv[r];
+    }
   }
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    if (!cluster_touched_scratch_[k]) continue;
+    DisplacedMoments& added = displaced_moments_scratch_[k];
+    if (!added.touched) continue;
+    ClusterSums& sums = cluster_sums_[k];
+    for (int r = 0; r < 3; ++r) {
+      sums.offset[r] += added.offset[r];
+      sums.momentum[r] += added.momentum[r];
+      sums.angular_momentum[r] += added.angular_momentum[r];
+      for (int c = 0; c < K; ++c) sums.offset_features(r, c) += added.offset_features[r][c];
+      for (int c = 0; c < 3; ++c) {
+        sums.second_moment(r, c) += added.half_second_moment[r][c] + added.half_second_moment[c][r];
+      }
+    }
     ClusterDeformation& deformation = deformations_[k];
     const Eigen::Matrix<double, 3, K> old_transform = deformation.transform.template leftCols<K>();
     const Eigen::Vector3d old_translation = deformation.translation;
-    setGoalTransform<K>(clusters_[k], fitCluster<Mode>(clusters_[k], cluster_sums_[k], deformation),
+    setGoalTransform<K>(clusters_[k], fitCluster<Mode>(clusters_[k], sums, deformation),
                         deformation);
     // Every fitted point moves by at most |dT| |q~| + |dt| with the refit, and a displaced
     // point by its displacement too: the residual stays bounded without visiting the cluster.
@@ -880,9 +907,8 @@ void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>&
         (deformation.transform.template leftCols<K>() - old_transform).norm() *
             clusters_[k].max_feature_norm +
         (deformation.translation - old_translation).norm();
-    deformation.goal_deviation_bound_m += cluster_displacement_scratch_[k] + refit_motion;
-    cluster_touched_scratch_[k] = 0;
-    cluster_displacement_scratch_[k] = 0.0;
+    deformation.goal_deviation_bound_m += std::sqrt(added.largest_squared_m2) + refit_motion;
+    added = DisplacedMoments{};
   }
 }
 

@@ -189,8 +189,19 @@ class ShapeMatchingBody {
   /// point_slots_[point_slot_offsets_[i] .. point_slot_offsets_[i + 1]).
   std::vector<std::uint32_t> point_slot_offsets_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> point_slots_;
-  std::vector<double> cluster_displacement_scratch_;  ///< Largest displacement per cluster.
-  std::vector<std::uint8_t> cluster_touched_scratch_;
+  /// What one call of applyDisplacements adds to a cluster's sums, gathered apart so that
+  /// the sums are added to once per cluster.
+  struct DisplacedMoments {
+    double offset[3] = {};
+    double offset_features[3][9] = {};
+    double momentum[3] = {};
+    double angular_momentum[3] = {};
+    /// sum w (p + dx / 2) dx^T: the second moment grows by it and its transpose.
+    double half_second_moment[3][3] = {};
+    double largest_squared_m2 = 0.0;  ///< Of the displacements.
+    bool touched = false;
+  };
+  std::vector<DisplacedMoments> displaced_moments_scratch_;  ///< One per cluster.
   std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
   std::vector<ClusterSums> cluster_sums_;  ///< Of the current positions and velocities.
   std::vector<Eigen::Matrix<double, 3, 9>> goal_transforms_;  ///< Scratch of one step.

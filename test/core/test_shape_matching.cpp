@@ -360,6 +360,50 @@ TEST(DisplacePoints, RefitThatMovesUndisplacedPointsIsBounded) {
   EXPECT_LE(worstBoundExcess(body), 1e-12);
 }
 
+TEST(DisplacePoints, IncrementalSumsMatchTheSumsOfTheMovedPoints) {
+  // The sums that displacePoints updates per point feed the fit (offsets and features) and
+  // the damping (momentum, spin, second moment). A copy that sums its points afresh must
+  // fit the same transforms and take the same next step.
+  for (const auto mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    ShapeMatchingConfig config = configFor(mode, 3);
+    config.damping = 0.2;
+    ShapeMatchingBody body(sampleEllipsoid(600, {0.4, 0.3, 0.2}, 43), config);
+    std::vector<Eigen::Vector3d> spin(body.pointCount());
+    for (std::size_t i = 0; i < spin.size(); ++i) {
+      spin[i] = Eigen::Vector3d(0.5, -1.0, 2.0).cross(body.positions()[i]) + Eigen::Vector3d(0.3, 0, 0);
+    }
+    body.setVelocities(spin);
+    for (int s = 0; s < 5; ++s) body.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    std::mt19937_64 engine(44);
+    std::normal_distribution<double> push(0.0, 0.01);
+    std::uniform_int_distribution<std::uint32_t> pick(0, 599);
+    std::vector<PointDisplacement> kicks;
+    for (int i = 0; i < 120; ++i) {
+      kicks.push_back({pick(engine), Eigen::Vector3d(push(engine), push(engine), push(engine)),
+                       Eigen::Vector3d(push(engine), push(engine), push(engine)) / 0.01});
+    }
+    body.displacePoints(kicks);
+
+    ShapeMatchingBody fresh = body;
+    fresh.setPositions(body.positions());
+    fresh.setVelocities(body.velocities());
+    for (std::size_t k = 0; k < body.clusterCount(); ++k) {
+      EXPECT_LT((fresh.deformation(k).center_of_mass - body.deformation(k).center_of_mass).norm(), 1e-12)
+          << toString(mode) << " cluster " << k;
+      EXPECT_LT((fresh.deformation(k).transform - body.deformation(k).transform).norm(), 1e-9)
+          << toString(mode) << " cluster " << k;
+    }
+    body.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    fresh.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    double worst = 0.0;
+    for (std::size_t i = 0; i < body.pointCount(); ++i) {
+      worst = std::max(worst, (body.positions()[i] - fresh.positions()[i]).norm());
+    }
+    EXPECT_LT(worst, 1e-10) << toString(mode);
+  }
+}
+
 TEST(DisplacePoints, BadInputThrowsAndLeavesTheStateAlone) {
   ShapeMatchingBody body(sampleBox(30, {0.1, 0.1, 0.1}, 2), ShapeMatchingConfig{});
   const Points before = body.positions();
