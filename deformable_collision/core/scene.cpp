@@ -32,6 +32,8 @@ struct Scene::Object {
       // Every point may be dented some cycle: the first such cycle must not allocate either.
       displaced_points.reserve(body.pointCount());
       displacements.reserve(body.pointCount());
+      dent_of_node.assign(tree.nodeCount(), 0);
+      dent_pair_of_node.assign(tree.nodeCount(), 0);
     }
   }
 
@@ -105,21 +107,55 @@ struct Scene::Object {
   void applyPendingDents(const std::vector<std::unique_ptr<Object>>& objects) {
     const auto& velocities = body.velocities();
     for (const PendingDent& pending : pending_dents) {
-      const double beyond = pending.depth_unmoved_m - translation.dot(pending.away);
-      if (beyond <= 0.0) continue;
+      // Each of the node's contacts with the partner dents it by what it needs beyond the
+      // object's move; a point takes the mean over all the dents it gets.
+      const double moved = translation.dot(pending.away);
+      double beyond_sum = 0.0;
+      std::uint32_t beyond_count = 0;
+      for (std::uint32_t d = pending.first_depth; d != kNoDepth; d = dent_depths[d].next) {
+        const double beyond = dent_depths[d].depth_unmoved_m - moved;
+        if (beyond <= 0.0) continue;
+        beyond_sum += beyond;
+        ++beyond_count;
+      }
+      if (beyond_count == 0) continue;
       // The partner's velocity after the response, less this object's own change: what a
       // point's current velocity is compared with.
       const Eigen::Vector3d other_velocity = objects[pending.partner]->velocity_after - velocity_change;
+      const Eigen::Vector3d displacement = beyond_sum * pending.away;
       const SphereNode& node = tree.node(pending.node);
       for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
         const std::uint32_t point = tree.pointIndices()[s];
-        if (displacement_counts[point]++ == 0) displaced_points.push_back(point);
-        displacement_sums[point] += beyond * pending.away;
+        if (displacement_counts[point] == 0) displaced_points.push_back(point);
+        displacement_counts[point] += beyond_count;
+        displacement_sums[point] += displacement;
         const double inward = std::min(0.0, (velocities[point] - other_velocity).dot(pending.away));
-        velocity_change_sums[point] -= inward * pending.away;
+        velocity_change_sums[point] -= (beyond_count * inward) * pending.away;
       }
     }
     pending_dents.clear();
+    dent_depths.clear();
+  }
+
+  /// Notes a contact's dent of `node`, pushed along `away` by `partner` in the pair resolved
+  /// as `pair_serial`. The contacts of one node with one partner share a direction (the
+  /// pair's normal, or a fixed node's plane): they are kept as one dent with a list of
+  /// depths, so that the node's points are visited once for all of them.
+  void addDent(std::uint32_t node, const Eigen::Vector3d& away, double depth_unmoved_m,
+               std::uint32_t partner, std::uint64_t pair_serial) {
+    const std::uint32_t depth = static_cast<std::uint32_t>(dent_depths.size());
+    dent_depths.push_back({depth_unmoved_m, kNoDepth});
+    if (dent_pair_of_node[node] == pair_serial) {
+      PendingDent& last = pending_dents[dent_of_node[node]];
+      if (last.away == away) {
+        dent_depths[last.last_depth].next = depth;
+        last.last_depth = depth;
+        return;
+      }
+    }
+    dent_pair_of_node[node] = pair_serial;
+    dent_of_node[node] = static_cast<std::uint32_t>(pending_dents.size());
+    pending_dents.push_back({node, away, partner, depth, depth});
   }
 
   ObjectConfig config;
@@ -136,14 +172,25 @@ struct Scene::Object {
   std::vector<std::uint32_t> displaced_points;
   std::vector<PointDisplacement> displacements;
   std::vector<Eigen::Vector3d> posed_points;  ///< Kinematic objects: the rest shape posed.
+  static constexpr std::uint32_t kNoDepth = std::numeric_limits<std::uint32_t>::max();
   /// A contact node's push, kept until the object's move over all its pairs is known.
   struct PendingDent {
     std::uint32_t node = 0;
     Eigen::Vector3d away = Eigen::Vector3d::UnitZ();  ///< Direction this object is pushed.
-    double depth_unmoved_m = 0.0;  ///< How far the node must go if the object did not move.
     std::uint32_t partner = 0;  ///< The object it touches.
+    /// Its contacts' depths in dent_depths, a list from first_depth to last_depth.
+    std::uint32_t first_depth = kNoDepth;
+    std::uint32_t last_depth = kNoDepth;
+  };
+  struct DentDepth {
+    double depth_unmoved_m = 0.0;  ///< How far the node must go if the object did not move.
+    std::uint32_t next = kNoDepth;
   };
   std::vector<PendingDent> pending_dents;
+  std::vector<DentDepth> dent_depths;
+  /// Per node: its dent in pending_dents, valid for the pair resolved as dent_pair_of_node.
+  std::vector<std::uint32_t> dent_of_node;
+  std::vector<std::uint64_t> dent_pair_of_node;
   /// The side each partner touched this object from, kept while the contact lasts: an
   /// object pushed past the middle of a thin wall must still be pushed back, not through.
   struct ContactSide {
@@ -512,6 +559,7 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   // Pushes per contact, for a (along +normal) and b (along -normal): a node's depth along
   // a normal from b to a, shared by inverse mass between dynamic nodes.
   pushes_.clear();
+  ++pair_serial_;
   const bool fixed_pair = a.dynamic() != b.dynamic();
   const Eigen::Vector3d translation_before_a = a.translation;
   const Eigen::Vector3d translation_before_b = b.translation;
@@ -544,6 +592,8 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
     ContactPush push;
     push.node_a = c.node_a;
     push.node_b = c.node_b;
+    push.points_a = a.tree.node(c.node_a).point_count;
+    push.points_b = b.tree.node(c.node_b).point_count;
     if (fixed_pair) {
       // Against a fixed object: its node's plane, oriented towards the dynamic object, and
       // the deepest point's signed distance. Unlike the distance to the nearest point, that
@@ -579,16 +629,16 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
       // Two dynamic nodes: the contact normal, turned to agree with where the objects are
       // relative to each other, and the depth shared by inverse mass.
       push.normal = c.normal.dot(side) < 0.0 ? Eigen::Vector3d(-c.normal) : c.normal;
-      const double inverse_a = a.support_depth < b.support_depth
-                                   ? 0.0
-                                   : 1.0 / (a.body.pointMassKg() * a.tree.node(c.node_a).point_count);
-      const double inverse_b = b.support_depth < a.support_depth
-                                   ? 0.0
-                                   : 1.0 / (b.body.pointMassKg() * b.tree.node(c.node_b).point_count);
       const double depth = c.depth_m - 0.5 * config_.contact_distance_m -
                            (a.translation - b.translation).dot(push.normal);
       if (depth <= 0.0) continue;
-      push.depth_a = depth * inverse_a / (inverse_a + inverse_b);
+      // Shared by inverse node mass: a's share is b's node mass over both.
+      const double mass_a = a.body.pointMassKg() * push.points_a;
+      const double mass_b = b.body.pointMassKg() * push.points_b;
+      const double share_of_a = a.support_depth < b.support_depth   ? 0.0
+                                : b.support_depth < a.support_depth ? 1.0
+                                                                    : mass_b / (mass_a + mass_b);
+      push.depth_a = depth * share_of_a;
       push.depth_b = depth - push.depth_a;
     }
     pushes_.push_back(push);
@@ -611,12 +661,10 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   double weight_b = 0.0;
   Eigen::Vector3d pair_normal = Eigen::Vector3d::Zero();
   for (const ContactPush& push : pushes_) {
-    const double points_a = a.tree.node(push.node_a).point_count;
-    const double points_b = b.tree.node(push.node_b).point_count;
-    mean_a += points_a * push.depth_a * push.normal;
-    mean_b -= points_b * push.depth_b * push.normal;
-    weight_a += points_a;
-    weight_b += points_b;
+    mean_a += push.points_a * push.depth_a * push.normal;
+    mean_b -= push.points_b * push.depth_b * push.normal;
+    weight_a += push.points_a;
+    weight_b += push.points_b;
     pair_normal += (push.depth_a + push.depth_b) * push.normal;
   }
   mean_a /= weight_a;
@@ -643,12 +691,12 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   // would leave the first jaw's contact deep inside.
   for (const ContactPush& push : pushes_) {
     if (a.dynamic() && push.depth_a > 0.0) {
-      a.pending_dents.push_back({push.node_a, push.normal,
-                                 push.depth_a + translation_before_a.dot(push.normal), index_b});
+      a.addDent(push.node_a, push.normal, push.depth_a + translation_before_a.dot(push.normal),
+                index_b, pair_serial_);
     }
     if (b.dynamic() && push.depth_b > 0.0) {
-      b.pending_dents.push_back({push.node_b, -push.normal,
-                                 push.depth_b - translation_before_b.dot(push.normal), index_a});
+      b.addDent(push.node_b, -push.normal, push.depth_b - translation_before_b.dot(push.normal),
+                index_a, pair_serial_);
     }
   }
 

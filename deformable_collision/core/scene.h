@@ -162,6 +162,8 @@ class Scene {
   struct ContactPush {
     std::uint32_t node_a = 0;
     std::uint32_t node_b = 0;
+    double points_a = 0.0;  ///< Points of node_a: its weight in a's mean push.
+    double points_b = 0.0;
     Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
     double depth_a = 0.0;
     double depth_b = 0.0;
@@ -183,6 +185,7 @@ class Scene {
   QueryCounters query_counters_;
   CycleStats stats_;
   std::uint64_t cycle_count_ = 1;
+  std::uint64_t pair_serial_ = 0;  ///< Counts resolvePair calls: keys each pair's dents.
 };
 
 }  // namespace deformable_collision
