@@ -108,6 +108,24 @@ __attribute__((target("avx512f"))) void firstPairAtAvx512(
     const double* by, const double* bz, std::uint32_t count_b, double squared_distance,
     std::uint32_t& offset_a, std::uint32_t& offset_b) {
   const __m512d target = _mm512_set1_pd(squared_distance);
+  if (count_a <= 8 && count_b <= 8) {
+    // Leaves of up to eight points: every row, one bit per pair, and no branch per row. The
+    // row that holds the pair is any with equal odds, and leaving early mispredicts.
+    const __mmask8 lanes = lanesFrom(0, count_b);
+    const __m512d x = _mm512_maskz_loadu_pd(lanes, bx);
+    const __m512d y = _mm512_maskz_loadu_pd(lanes, by);
+    const __m512d z = _mm512_maskz_loadu_pd(lanes, bz);
+    std::uint64_t equal = 0;
+    for (std::uint32_t s = 0; s < count_a; ++s) {
+      const std::uint64_t row = _mm512_mask_cmp_pd_mask(
+          lanes, squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z), target, _CMP_EQ_OQ);
+      equal |= row << (8 * s);
+    }
+    const auto first = static_cast<std::uint32_t>(__builtin_ctzll(equal));
+    offset_a = first / 8;
+    offset_b = first % 8;
+    return;
+  }
   for (std::uint32_t s = 0; s < count_a; ++s) {
     for (std::uint32_t t = 0; t < count_b; t += 8) {
       const __mmask8 lanes = lanesFrom(t, count_b);
