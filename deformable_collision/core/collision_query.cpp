@@ -101,6 +101,41 @@ __attribute__((target("avx512f"))) bool nearestPairSquaredDistanceAvx512(
   return true;
 }
 
+/// nearestPairSquaredDistanceAvx512 and firstPairAtAvx512 in one pass, for up to eight
+/// points of b: each lane keeps the first of a's points at its least distance, so the
+/// closest pair of a contact costs no second pass over the rows.
+__attribute__((target("avx512f"))) bool closestPairOfEightAvx512(
+    const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
+    const double* by, const double* bz, std::uint32_t count_b, double below_squared,
+    double& nearest_squared, std::uint32_t& offset_a, std::uint32_t& offset_b) {
+  const __mmask8 lanes = lanesFrom(0, count_b);
+  const __m512d x = _mm512_maskz_loadu_pd(lanes, bx);
+  const __m512d y = _mm512_maskz_loadu_pd(lanes, by);
+  const __m512d z = _mm512_maskz_loadu_pd(lanes, bz);
+  __m512d nearest = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+  __m512i row = _mm512_setzero_si512();
+  for (std::uint32_t s = 0; s < count_a; ++s) {
+    const __m512d squared = squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z);
+    const __mmask8 closer = _mm512_mask_cmp_pd_mask(lanes, squared, nearest, _CMP_LT_OQ);
+    nearest = _mm512_mask_mov_pd(nearest, closer, squared);
+    row = _mm512_mask_mov_epi64(row, closer, _mm512_set1_epi64(s));
+  }
+  // Most leaf pairs in reach have no pair close enough: they end on one comparison.
+  if (_mm512_cmp_pd_mask(nearest, _mm512_set1_pd(below_squared), _CMP_LT_OQ) == 0) return false;
+  __m512d least = _mm512_min_pd(nearest, _mm512_shuffle_f64x2(nearest, nearest, 0x4E));
+  least = _mm512_min_pd(least, _mm512_shuffle_f64x2(least, least, 0xB1));
+  least = _mm512_min_pd(least, _mm512_shuffle_pd(least, least, 0x55));
+  nearest_squared = _mm512_cvtsd_f64(least);
+  // Of the lanes at the least distance, the one with the first row, then the first lane.
+  const __mmask8 at_least = _mm512_mask_cmp_pd_mask(lanes, nearest, least, _CMP_EQ_OQ);
+  const __m512i order = _mm512_add_epi64(_mm512_slli_epi64(row, 3),
+                                         _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0));
+  const auto first = static_cast<std::uint64_t>(_mm512_mask_reduce_min_epi64(at_least, order));
+  offset_a = static_cast<std::uint32_t>(first >> 3);
+  offset_b = static_cast<std::uint32_t>(first & 7);
+  return true;
+}
+
 /// The first pair, a's points in order and then b's, at `squared_distance` (one that
 /// nearestPairSquaredDistanceAvx512 returned), as offsets into a's and b's arrays.
 __attribute__((target("avx512f"))) void firstPairAtAvx512(
@@ -108,24 +143,6 @@ __attribute__((target("avx512f"))) void firstPairAtAvx512(
     const double* by, const double* bz, std::uint32_t count_b, double squared_distance,
     std::uint32_t& offset_a, std::uint32_t& offset_b) {
   const __m512d target = _mm512_set1_pd(squared_distance);
-  if (count_a <= 8 && count_b <= 8) {
-    // Leaves of up to eight points: every row, one bit per pair, and no branch per row. The
-    // row that holds the pair is any with equal odds, and leaving early mispredicts.
-    const __mmask8 lanes = lanesFrom(0, count_b);
-    const __m512d x = _mm512_maskz_loadu_pd(lanes, bx);
-    const __m512d y = _mm512_maskz_loadu_pd(lanes, by);
-    const __m512d z = _mm512_maskz_loadu_pd(lanes, bz);
-    std::uint64_t equal = 0;
-    for (std::uint32_t s = 0; s < count_a; ++s) {
-      const std::uint64_t row = _mm512_mask_cmp_pd_mask(
-          lanes, squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z), target, _CMP_EQ_OQ);
-      equal |= row << (8 * s);
-    }
-    const auto first = static_cast<std::uint32_t>(__builtin_ctzll(equal));
-    offset_a = first / 8;
-    offset_b = first % 8;
-    return;
-  }
   for (std::uint32_t s = 0; s < count_a; ++s) {
     for (std::uint32_t t = 0; t < count_b; t += 8) {
       const __mmask8 lanes = lanesFrom(t, count_b);
@@ -201,10 +218,17 @@ template <bool Wide>
 #if defined(__GNUC__) && defined(__x86_64__)
   if constexpr (Wide) {
     counters.point_tests += count_a * count_b;
-    if (!nearestPairSquaredDistanceAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best)) {
-      return false;
+    if (count_b <= 8) {
+      if (!closestPairOfEightAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best, best_a,
+                                    best_b)) {
+        return false;
+      }
+    } else {
+      if (!nearestPairSquaredDistanceAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best)) {
+        return false;
+      }
+      firstPairAtAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best_a, best_b);
     }
-    firstPairAtAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best_a, best_b);
   } else
 #endif
   {
