@@ -378,10 +378,14 @@ TEST(DisplacePoints, IncrementalSumsMatchTheSumsOfTheMovedPoints) {
     std::mt19937_64 engine(44);
     std::normal_distribution<double> push(0.0, 0.01);
     std::uniform_int_distribution<std::uint32_t> pick(0, 599);
+    // Runs of points with one displacement, as a dented node's points come, and single ones.
     std::vector<PointDisplacement> kicks;
-    for (int i = 0; i < 120; ++i) {
-      kicks.push_back({pick(engine), Eigen::Vector3d(push(engine), push(engine), push(engine)),
-                       Eigen::Vector3d(push(engine), push(engine), push(engine)) / 0.01});
+    for (int run = 0; run < 40; ++run) {
+      const Eigen::Vector3d shift(push(engine), push(engine), push(engine));
+      for (int i = 0; i < 1 + run % 7; ++i) {
+        kicks.push_back({pick(engine), shift,
+                         Eigen::Vector3d(push(engine), push(engine), push(engine)) / 0.01});
+      }
     }
     body.displacePoints(kicks);
 
