@@ -75,6 +75,13 @@ inline __mmask8 lanesFrom(std::uint32_t offset, std::uint32_t count) {
   return count - offset >= 8 ? 0xFF : static_cast<__mmask8>((1u << (count - offset)) - 1);
 }
 
+/// The least of the eight values, in every lane.
+__attribute__((target("avx512f"))) inline __m512d leastInEveryLaneAvx512(__m512d values) {
+  values = _mm512_min_pd(values, _mm512_shuffle_f64x2(values, values, 0x4E));
+  values = _mm512_min_pd(values, _mm512_shuffle_f64x2(values, values, 0xB1));
+  return _mm512_min_pd(values, _mm512_shuffle_pd(values, values, 0x55));
+}
+
 /// Squared distance of the nearest pair of two point sets if it is below `below_squared`,
 /// all pairs at once, eight of b's points per instruction.
 __attribute__((target("avx512f"))) bool nearestPairSquaredDistanceAvx512(
@@ -94,10 +101,7 @@ __attribute__((target("avx512f"))) bool nearestPairSquaredDistanceAvx512(
   }
   // Most leaf pairs in reach have no pair close enough: they end on one comparison.
   if (_mm512_cmp_pd_mask(nearest, _mm512_set1_pd(below_squared), _CMP_LT_OQ) == 0) return false;
-  nearest = _mm512_min_pd(nearest, _mm512_shuffle_f64x2(nearest, nearest, 0x4E));
-  nearest = _mm512_min_pd(nearest, _mm512_shuffle_f64x2(nearest, nearest, 0xB1));
-  nearest = _mm512_min_pd(nearest, _mm512_shuffle_pd(nearest, nearest, 0x55));
-  nearest_squared = _mm512_cvtsd_f64(nearest);
+  nearest_squared = _mm512_cvtsd_f64(leastInEveryLaneAvx512(nearest));
   return true;
 }
 
@@ -120,11 +124,8 @@ __attribute__((target("avx512f"))) bool closestPairOfEightAvx512(
     nearest = _mm512_mask_mov_pd(nearest, closer, squared);
     row = _mm512_mask_mov_epi64(row, closer, _mm512_set1_epi64(s));
   }
-  // Most leaf pairs in reach have no pair close enough: they end on one comparison.
   if (_mm512_cmp_pd_mask(nearest, _mm512_set1_pd(below_squared), _CMP_LT_OQ) == 0) return false;
-  __m512d least = _mm512_min_pd(nearest, _mm512_shuffle_f64x2(nearest, nearest, 0x4E));
-  least = _mm512_min_pd(least, _mm512_shuffle_f64x2(least, least, 0xB1));
-  least = _mm512_min_pd(least, _mm512_shuffle_pd(least, least, 0x55));
+  const __m512d least = leastInEveryLaneAvx512(nearest);
   nearest_squared = _mm512_cvtsd_f64(least);
   // Of the lanes at the least distance, the one with the first row, then the first lane.
   const __mmask8 at_least = _mm512_mask_cmp_pd_mask(lanes, nearest, least, _CMP_EQ_OQ);
