@@ -194,12 +194,14 @@ template <bool Wide>
   return mask;
 }
 
-/// Closest point pair of two leaves closer than the contact distance, if any: all pairs at
-/// once with wide vectors; otherwise the points of a near b's sphere, each against b's.
+/// Adds the contact of two leaves if a point pair is closer than the contact distance, at
+/// their closest pair: all pairs at once with wide vectors; otherwise the points of a near
+/// b's sphere, each against b's.
 template <bool Wide>
-[[gnu::always_inline]] inline bool closestLeafPair(const SphereTree& a, const NodeState& leaf_a,
-                                                   const SphereTree& b, const NodeState& leaf_b,
-                                                   double contact_distance_m, SphereContact& contact,
+[[gnu::always_inline]] inline void closestLeafPair(const SphereTree& a, std::uint32_t node_a,
+                                                   const NodeState& leaf_a, const SphereTree& b,
+                                                   std::uint32_t node_b, const NodeState& leaf_b,
+                                                   double contact_distance_m, ContactSink& contacts,
                                                    QueryCounters& counters) {
   const std::uint32_t count_b = leaf_b.point_count;
   const auto& pa = a.leafPositions();
@@ -222,11 +224,11 @@ template <bool Wide>
     if (count_b <= 8) {
       if (!closestPairOfEightAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best, best_a,
                                     best_b)) {
-        return false;
+        return;
       }
     } else {
       if (!nearestPairSquaredDistanceAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best)) {
-        return false;
+        return;
       }
       firstPairAtAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best_a, best_b);
     }
@@ -245,7 +247,7 @@ template <bool Wide>
         best_a = s;
       }
     }
-    if (best_a == count_a) return false;
+    if (best_a == count_a) return;
     double nearest = std::numeric_limits<double>::infinity();
     for (std::uint32_t t = 0; t < count_b; ++t) {
       const double dx = ax[best_a] - bx[t], dy = ay[best_a] - by[t], dz = az[best_a] - bz[t];
@@ -256,6 +258,10 @@ template <bool Wide>
       }
     }
   }
+  SphereContact& contact = contacts.add();
+  contact.node_a = node_a;
+  contact.node_b = node_b;
+  contact.level = std::max(leaf_a.level, leaf_b.level);
   contact.point_a = a.pointIndices()[leaf_a.first_point + best_a];
   contact.point_b = b.pointIndices()[leaf_b.first_point + best_b];
   const Eigen::Vector3d x(ax[best_a], ay[best_a], az[best_a]);
@@ -263,7 +269,6 @@ template <bool Wide>
   contact.position = 0.5 * (x + y);
   contact.normal = directionFrom(y, x);
   contact.depth_m = contact_distance_m - std::sqrt(best);
-  return true;
 }
 
 /// Leaves under a node at which the descent to the leaves stops: their spheres are then
@@ -276,7 +281,7 @@ template <bool Wide>
 [[gnu::always_inline]] inline void collideBuckets(SphereTree& a, const NodeState& bucket_a,
                                                   SphereTree& b, const NodeState& bucket_b,
                                                   double contact_distance_m,
-                                                  std::vector<SphereContact>& contacts,
+                                                  ContactSink& contacts,
                                                   QueryCounters& counters) {
   for (std::uint32_t k = bucket_a.first_leaf; k < bucket_a.first_leaf + bucket_a.leaf_count; ++k) {
     a.current(a.leafNode(k));
@@ -303,15 +308,10 @@ template <bool Wide>
   while (within_reach != 0) {
     const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(within_reach));
     within_reach &= within_reach - 1;
-    SphereContact contact;
-    contact.node_a = a.leafNode(first_a + (bit >> 3));
-    contact.node_b = b.leafNode(first_b + (bit & 7));
-    const NodeState& leaf_a = a.current(contact.node_a);
-    const NodeState& leaf_b = b.current(contact.node_b);
-    contact.level = std::max(leaf_a.level, leaf_b.level);
-    if (closestLeafPair<Wide>(a, leaf_a, b, leaf_b, contact_distance_m, contact, counters)) {
-      contacts.push_back(contact);
-    }
+    const std::uint32_t node_a = a.leafNode(first_a + (bit >> 3));
+    const std::uint32_t node_b = b.leafNode(first_b + (bit & 7));
+    closestLeafPair<Wide>(a, node_a, a.current(node_a), b, node_b, b.current(node_b),
+                          contact_distance_m, contacts, counters);
   }
 }
 
@@ -319,14 +319,14 @@ template <bool Wide>
 #if defined(__GNUC__) && defined(__x86_64__)
 __attribute__((target("avx512f"))) void collideBucketsWide(
     SphereTree& a, const NodeState& bucket_a, SphereTree& b, const NodeState& bucket_b,
-    double contact_distance_m, std::vector<SphereContact>& contacts, QueryCounters& counters) {
+    double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
   collideBuckets<true>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
 }
 #endif
 
 void collideBucketsPortable(SphereTree& a, const NodeState& bucket_a, SphereTree& b,
                             const NodeState& bucket_b, double contact_distance_m,
-                            std::vector<SphereContact>& contacts, QueryCounters& counters) {
+                            ContactSink& contacts, QueryCounters& counters) {
   collideBuckets<false>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
 }
 
@@ -357,6 +357,16 @@ HierarchyQuery::HierarchyQuery(bool use_wide_vectors)
 
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              std::vector<SphereContact>& contacts, QueryCounters& counters) {
+  struct Appender final : ContactSink {
+    explicit Appender(std::vector<SphereContact>& contacts) : contacts(contacts) {}
+    SphereContact& add() override { return contacts.emplace_back(); }
+    std::vector<SphereContact>& contacts;
+  } appender(contacts);
+  collide(a, b, level, contact_distance_m, appender, counters);
+}
+
+void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
+                             ContactSink& contacts, QueryCounters& counters) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
   // Branch-free where the outcome is a coin toss: which pairs end, which are in reach.
   const auto terminal = [level, to_leaves](const NodeState& node) {
@@ -390,7 +400,7 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
         collideBucketsPortable(a, na, b, nb, contact_distance_m, contacts, counters);
         continue;
       }
-      SphereContact contact;
+      SphereContact& contact = contacts.add();
       contact.node_a = ia;
       contact.node_b = ib;
       contact.level = std::max(na.level, nb.level);
@@ -402,7 +412,6 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
       const Eigen::Vector3d surface_a = sa.center - (sa.radius + 0.5 * contact_distance_m) * contact.normal;
       const Eigen::Vector3d surface_b = sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
       contact.position = 0.5 * (surface_a + surface_b);
-      contacts.push_back(contact);
       continue;
     }
     // Descend the node that is not done, the larger one if both may go on. Children are

@@ -26,6 +26,17 @@ struct SphereContact {
   std::uint32_t point_b = kNoPoint;
 };
 
+/// Takes a query's contacts one at a time, so that a caller can keep them in its own layout
+/// (a scene tags each with its two objects) without copying them afterwards.
+class ContactSink {
+ public:
+  /// A default record for one more contact, which the query then fills in.
+  virtual SphereContact& add() = 0;
+
+ protected:
+  ~ContactSink() = default;
+};
+
 struct QueryCounters {
   std::size_t node_pairs_tested = 0;
   std::size_t point_tests = 0;  ///< Point-sphere and point-point distance tests.
@@ -51,6 +62,9 @@ class HierarchyQuery {
   /// the contacts cover exactly the point pairs that brute force finds; there, nodes of up
   /// to eight leaves test their leaves' spheres all against all rather than descending pair
   /// by pair. Spheres are computed lazily (SphereTree::sphere).
+  void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
+               ContactSink& contacts, QueryCounters& counters);
+  /// collide() appending to a vector.
   void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                std::vector<SphereContact>& contacts, QueryCounters& counters);
 

@@ -428,6 +428,25 @@ void Scene::sweepAndPrune() {
   std::sort(candidate_pairs_.begin(), candidate_pairs_.end());
 }
 
+namespace {
+
+/// Writes a query's contacts straight into the scene's list, tagged with their objects.
+class PairContacts final : public ContactSink {
+ public:
+  PairContacts(std::vector<SceneContact>& contacts, std::uint32_t object_a, std::uint32_t object_b)
+      : contacts_(contacts), object_a_(object_a), object_b_(object_b) {}
+  SphereContact& add() override {
+    return contacts_.emplace_back(SceneContact{object_a_, object_b_, SphereContact{}}).contact;
+  }
+
+ private:
+  std::vector<SceneContact>& contacts_;
+  std::uint32_t object_a_;
+  std::uint32_t object_b_;
+};
+
+}  // namespace
+
 void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
                    std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs) {
   sweepAndPrune();
@@ -444,12 +463,11 @@ void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<s
     const std::uint32_t first = forward ? a : b;
     const std::uint32_t second = forward ? b : a;
     ++stats_.object_pairs_tested;
-    pair_contacts_.clear();
+    PairContacts pair_contacts(contacts, first, second);
+    const std::size_t begin = contacts.size();
     query_.collide(objects_[first]->tree, objects_[second]->tree, level,
-                   config_.contact_distance_m, pair_contacts_, query_counters_);
-    if (pair_contacts_.empty()) continue;
-    if (runs) runs->push_back({first, second, contacts.size(), contacts.size() + pair_contacts_.size()});
-    for (const auto& contact : pair_contacts_) contacts.push_back({first, second, contact});
+                   config_.contact_distance_m, pair_contacts, query_counters_);
+    if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
   }
 }
 

@@ -174,7 +174,6 @@ class Scene {
   std::vector<std::uint32_t> sweep_order_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> candidate_pairs_;
   HierarchyQuery query_;
-  std::vector<SphereContact> pair_contacts_;
   std::vector<SceneContact> contacts_;
   std::vector<ContactPush> pushes_;
   std::vector<std::uint32_t> support_queue_;
