@@ -189,6 +189,38 @@ TEST(LevelOfDetail, EveryLevelCoversTheClosePointPairs) {
   }
 }
 
+// A contact names a point pair only at the leaves, where it is the closest pair of its two
+// leaves; above them the record keeps its default points.
+TEST(LevelOfDetail, ContactsNameTheirClosestPairOnlyAtTheLeaves) {
+  const double contact_distance = 0.02;
+  TwoBodies scene = randomScene(7);
+  SphereTree ta(scene.a, {2, 6});
+  SphereTree tb(scene.b, {2, 6});
+  const int leaves = std::max(ta.maxLevel(), tb.maxLevel());
+  HierarchyQuery query;
+  for (const int level : {0, leaves / 2, leaves - 1, leaves}) {
+    ta.beginCycle();
+    tb.beginCycle();
+    std::vector<SphereContact> contacts;
+    QueryCounters counters;
+    query.collide(ta, tb, level, contact_distance, contacts, counters);
+    ASSERT_FALSE(contacts.empty()) << "level " << level;
+    for (const auto& c : contacts) {
+      if (level < leaves) {
+        EXPECT_EQ(c.point_a, SphereContact::kNoPoint) << "level " << level;
+        EXPECT_EQ(c.point_b, SphereContact::kNoPoint) << "level " << level;
+        continue;
+      }
+      ASSERT_LT(c.point_a, scene.a.pointCount());
+      ASSERT_LT(c.point_b, scene.b.pointCount());
+      const Eigen::Vector3d& x = scene.a.positions()[c.point_a];
+      const Eigen::Vector3d& y = scene.b.positions()[c.point_b];
+      EXPECT_NEAR((x - y).norm(), contact_distance - c.depth_m, 1e-12);
+      EXPECT_TRUE(c.position.isApprox(0.5 * (x + y), 1e-12));
+    }
+  }
+}
+
 /// The work of one leaf-level query between two bodies, on fresh trees.
 struct Work {
   std::size_t nodes;

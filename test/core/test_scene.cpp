@@ -341,7 +341,10 @@ TEST(Scene, LevelSwitchesBetweenCyclesAndQueriesLeaveItAlone) {
   scene->setLevel(2);
   scene->cycle();
   EXPECT_EQ(scene->stats().level, 2);
-  for (const auto& c : scene->contacts()) EXPECT_LE(c.contact.level, 2);
+  for (const auto& c : scene->contacts()) {
+    EXPECT_LE(c.contact.level, 2);
+    EXPECT_EQ(c.contact.point_a, SphereContact::kNoPoint);  // a point pair only at the leaves
+  }
   const auto kept = scene->contacts();
 
   std::vector<SceneContact> finest;
