@@ -1,5 +1,6 @@
 #include "deformable_collision/core/scene.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
@@ -15,6 +16,79 @@ using Clock = std::chrono::steady_clock;
 
 double millisecondsBetween(Clock::time_point from, Clock::time_point to) {
   return std::chrono::duration<double, std::milli>(to - from).count();
+}
+
+/// Mean and scatter of points, taken about an origin near them (coordinates may be 1e5 m).
+class PointMoments {
+ public:
+  explicit PointMoments(const Eigen::Vector3d& origin) : origin_(origin) {}
+  void add(const Eigen::Vector3d& point) {
+    const Eigen::Vector3d x = point - origin_;
+    sum_ += x;
+    squares_ += x * x.transpose();
+    ++count_;
+  }
+  /// A node's points: a leaf's, where the query measured them this cycle, else its centre.
+  void addNode(SphereTree& tree, std::uint32_t node, bool measured_leaf) {
+    if (!measured_leaf) {
+      add(tree.sphere(node).center);
+      return;
+    }
+    const SphereNode& leaf = tree.node(node);
+    for (std::uint32_t s = leaf.first_point; s < leaf.first_point + leaf.point_count; ++s) {
+      add(tree.leafPositions().col(s));
+    }
+  }
+  Eigen::Vector3d mean() const { return sum_ / count_; }
+  Eigen::Matrix3d scatter() const {
+    const Eigen::Vector3d m = mean();
+    return squares_ / count_ - m * m.transpose();
+  }
+
+ private:
+  Eigen::Vector3d origin_;
+  Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d squares_ = Eigen::Matrix3d::Zero();
+  double count_ = 0.0;
+};
+
+/// The direction from b's contact nodes to a's, for the contacts of one object pair. At the
+/// leaves it is the one that best separates the two sides' points (Fisher's discriminant):
+/// the difference of their means, shrunk along the directions in which the points spread. A
+/// flat contact's points spread along the face, so its normal comes out even when a handful
+/// of contacts, scattered across the face, are all there is; the plain difference of the
+/// means tilts with them. `regularisation_m2` keeps it defined for one contact. Above the
+/// leaves only the nodes' centres stand for their points, and those of large nodes spread
+/// through the objects rather than along the face: there it is the difference of the means.
+/// Not normalised; zero if the means coincide.
+Eigen::Vector3d separatingDirection(SphereTree& a, SphereTree& b, const std::vector<SceneContact>& contacts,
+                                    std::size_t begin, std::size_t end, double regularisation_m2) {
+  const Eigen::Vector3d origin = a.sphere(contacts[begin].contact.node_a).center;
+  // One query found all of a pair's contacts, at the leaves or above them.
+  const bool leaves = contacts[begin].contact.point_a != SphereContact::kNoPoint;
+  PointMoments side_a(origin);
+  PointMoments side_b(origin);
+  for (std::size_t k = begin; k < end; ++k) {
+    const SphereContact& c = contacts[k].contact;
+    side_a.addNode(a, c.node_a, leaves);
+    side_b.addNode(b, c.node_b, leaves);
+  }
+  const Eigen::Vector3d apart = side_a.mean() - side_b.mean();
+  if (!leaves) return apart;
+  const Eigen::Matrix3d scatter =
+      side_a.scatter() + side_b.scatter() + regularisation_m2 * Eigen::Matrix3d::Identity();
+  return scatter.ldlt().solve(apart);
+}
+
+/// How far the points of a leaf that a query visited this cycle reach along `direction`.
+double reachAlong(const SphereTree& tree, std::uint32_t leaf, const Eigen::Vector3d& direction) {
+  const SphereNode& node = tree.node(leaf);
+  const auto& positions = tree.leafPositions();
+  double reach = -std::numeric_limits<double>::infinity();
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    reach = std::max(reach, positions.col(s).dot(direction));
+  }
+  return reach;
 }
 
 }  // namespace
@@ -605,6 +679,19 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   } else {
     side = a.tree.sphere(0).center - b.tree.sphere(0).center;
   }
+  // Between two dynamic objects every push goes along one normal: the direction that
+  // separates a's contact nodes from b's, turned to agree with the side a lies on. Nearest
+  // point pairs of two clouds point every which way, and more so once the clouds have
+  // passed into each other; the two sides of the contact do not.
+  Eigen::Vector3d pair_normal_ab = side;
+  if (!fixed_pair) {
+    const double spread = 0.1 * config_.contact_distance_m;
+    const Eigen::Vector3d across =
+        separatingDirection(a.tree, b.tree, contacts_, run_begin, run_end, spread * spread);
+    if (across.squaredNorm() > 0.0) pair_normal_ab = across.dot(side) < 0.0 ? Eigen::Vector3d(-across) : across;
+    const double length = pair_normal_ab.norm();
+    pair_normal_ab = length > 0.0 ? Eigen::Vector3d(pair_normal_ab / length) : Eigen::Vector3d::UnitZ();
+  }
   for (std::size_t k = run_begin; k < run_end; ++k) {
     const SphereContact& c = contacts_[k].contact;
     ContactPush push;
@@ -644,10 +731,18 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
       push.depth_a = a_fixed ? 0.0 : depth;
       push.depth_b = a_fixed ? depth : 0.0;
     } else {
-      // Two dynamic nodes: the contact normal, turned to agree with where the objects are
-      // relative to each other, and the depth shared by inverse mass.
-      push.normal = c.normal.dot(side) < 0.0 ? Eigen::Vector3d(-c.normal) : c.normal;
-      const double depth = c.depth_m - 0.5 * config_.contact_distance_m -
+      // Two dynamic nodes, along the pair's normal, the depth shared by inverse mass. At
+      // the leaves the depth is how far b's points reach past a's along the normal: the
+      // nearest pair's distance says nothing of how deep two clouds have passed into each
+      // other (it stays below the point spacing however deep), and piles sank into
+      // themselves. Above the leaves, spheres stand for their points (the query's depth).
+      push.normal = pair_normal_ab;
+      const double overlap = c.point_a == SphereContact::kNoPoint
+                                 ? c.depth_m
+                                 : reachAlong(b.tree, c.node_b, push.normal) +
+                                       reachAlong(a.tree, c.node_a, -push.normal) +
+                                       config_.contact_distance_m;
+      const double depth = overlap - 0.5 * config_.contact_distance_m -
                            (a.translation - b.translation).dot(push.normal);
       if (depth <= 0.0) continue;
       // Shared by inverse node mass: a's share is b's node mass over both.
@@ -662,16 +757,6 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
     pushes_.push_back(push);
   }
   if (pushes_.empty()) return;
-  if (!fixed_pair) {
-    // Nearest point pairs of two clouds point every which way; their depth-weighted mean
-    // does not, and pushing along it keeps stacked objects from sliding off each other.
-    Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();
-    for (const ContactPush& push : pushes_) mean_normal += (push.depth_a + push.depth_b) * push.normal;
-    if (mean_normal.squaredNorm() > 0.0) {
-      mean_normal.normalize();
-      for (ContactPush& push : pushes_) push.normal = mean_normal;
-    }
-  }
 
   Eigen::Vector3d mean_a = Eigen::Vector3d::Zero();
   Eigen::Vector3d mean_b = Eigen::Vector3d::Zero();
