@@ -1,5 +1,6 @@
 #include "deformable_collision/core/demo_scenes.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <random>
@@ -92,17 +93,25 @@ void buildPile(Scene& scene, std::size_t points) {
                   slab({half, 0.01, 1.0}, 0.02, {0, half + 0.01, 1.0}));
   std::mt19937_64 engine(7);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  // 6 x 6 columns, stacked as high as needed, each object in its own 0.18 m cell.
+  // 6 x 6 columns, stacked as high as needed, each object in its own 0.18 m cell, turned
+  // every which way, and every other layer shifted by a quarter cell: ellipsoids dropped
+  // upright and in line stand as towers for hundreds of cycles, and a pile is what the
+  // scene is for.
   for (int i = 0; i < kObjects; ++i) {
     const int column = i % 36;
     const int layer = i / 36;
-    const Eigen::Vector3d at(-0.45 + 0.18 * (column % 6), -0.45 + 0.18 * (column / 6),
+    const double shift = layer % 2 ? 0.045 : -0.045;
+    const Eigen::Vector3d at(-0.45 + shift + 0.18 * (column % 6), -0.45 + shift + 0.18 * (column / 6),
                              0.12 + 0.18 * layer);
     const Eigen::Vector3d radii(0.05 + 0.03 * unit(engine), 0.05 + 0.03 * unit(engine),
                                 0.04 + 0.03 * unit(engine));
+    const Eigen::Vector3d axis(unit(engine) - 0.5, unit(engine) - 0.5, unit(engine) - 0.5);
+    const Eigen::Matrix3d turn =
+        Eigen::AngleAxisd(M_PI * unit(engine), axis.normalized()).toRotationMatrix();
+    std::vector<Eigen::Vector3d> points = sampleEllipsoid(each, radii, 100 + i);
+    for (auto& p : points) p = turn * p;
     const DeformationMode mode = i % 2 ? DeformationMode::kQuadratic : DeformationMode::kLinear;
-    scene.addObject(softObject("object_" + std::to_string(i), mode, 1, 0.2),
-                    placed(sampleEllipsoid(each, radii, 100 + i), at));
+    scene.addObject(softObject("object_" + std::to_string(i), mode, 1, 0.2), placed(std::move(points), at));
   }
 }
 
