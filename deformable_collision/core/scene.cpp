@@ -22,33 +22,54 @@ double millisecondsBetween(Clock::time_point from, Clock::time_point to) {
 class PointMoments {
  public:
   explicit PointMoments(const Eigen::Vector3d& origin) : origin_(origin) {}
-  void add(const Eigen::Vector3d& point) {
-    const Eigen::Vector3d x = point - origin_;
-    sum_ += x;
-    squares_ += x * x.transpose();
-    ++count_;
-  }
   /// A node's points: a leaf's, where the query measured them this cycle, else its centre.
   void addNode(SphereTree& tree, std::uint32_t node, bool measured_leaf) {
     if (!measured_leaf) {
-      add(tree.sphere(node).center);
+      const Eigen::Vector3d& c = tree.sphere(node).center;
+      addPoints(&c.x(), &c.y(), &c.z(), 1);
       return;
     }
     const SphereNode& leaf = tree.node(node);
-    for (std::uint32_t s = leaf.first_point; s < leaf.first_point + leaf.point_count; ++s) {
-      add(tree.leafPositions().col(s));
-    }
+    const auto& positions = tree.leafPositions();
+    addPoints(&positions(0, leaf.first_point), &positions(1, leaf.first_point),
+              &positions(2, leaf.first_point), leaf.point_count);
   }
-  Eigen::Vector3d mean() const { return sum_ / count_; }
+  Eigen::Vector3d mean() const { return Eigen::Vector3d(sum_[0], sum_[1], sum_[2]) / count_; }
   Eigen::Matrix3d scatter() const {
+    Eigen::Matrix3d squares;
+    squares << products_[0], products_[3], products_[5],  //
+        products_[3], products_[1], products_[4],          //
+        products_[5], products_[4], products_[2];
     const Eigen::Vector3d m = mean();
-    return squares_ / count_ - m * m.transpose();
+    return squares / count_ - m * m.transpose();
   }
 
  private:
+  /// `count` points from coordinate arrays (a leaf's columns, or one point's coordinates).
+  void addPoints(const double* xs, const double* ys, const double* zs, std::uint32_t count) {
+    // Nine separate sums: one running matrix through every point would chain each point's
+    // additions to the last point's.
+    double sum[3] = {}, products[6] = {};
+    for (std::uint32_t s = 0; s < count; ++s) {
+      const double x = xs[s] - origin_.x(), y = ys[s] - origin_.y(), z = zs[s] - origin_.z();
+      sum[0] += x;
+      sum[1] += y;
+      sum[2] += z;
+      products[0] += x * x;
+      products[1] += y * y;
+      products[2] += z * z;
+      products[3] += x * y;
+      products[4] += y * z;
+      products[5] += z * x;
+    }
+    for (int r = 0; r < 3; ++r) sum_[r] += sum[r];
+    for (int r = 0; r < 6; ++r) products_[r] += products[r];
+    count_ += count;
+  }
+
   Eigen::Vector3d origin_;
-  Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d squares_ = Eigen::Matrix3d::Zero();
+  double sum_[3] = {};
+  double products_[6] = {};  ///< xx, yy, zz, xy, yz, zx.
   double count_ = 0.0;
 };
 
@@ -84,9 +105,12 @@ Eigen::Vector3d separatingDirection(SphereTree& a, SphereTree& b, const std::vec
 double reachAlong(const SphereTree& tree, std::uint32_t leaf, const Eigen::Vector3d& direction) {
   const SphereNode& node = tree.node(leaf);
   const auto& positions = tree.leafPositions();
+  const double* xs = &positions(0, node.first_point);
+  const double* ys = &positions(1, node.first_point);
+  const double* zs = &positions(2, node.first_point);
   double reach = -std::numeric_limits<double>::infinity();
-  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-    reach = std::max(reach, positions.col(s).dot(direction));
+  for (std::uint32_t s = 0; s < node.point_count; ++s) {
+    reach = std::max(reach, xs[s] * direction.x() + ys[s] * direction.y() + zs[s] * direction.z());
   }
   return reach;
 }
