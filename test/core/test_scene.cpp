@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <new>
 #include <set>
 #include <tuple>
@@ -44,6 +45,20 @@ Points floorPoints() {
     }
   }
   return floor;
+}
+
+/// A scene as these tests use it: a 2 cm contact distance, `level`, and floorPoints() as a
+/// static floor.
+std::unique_ptr<Scene> sceneOnFloor(int level) {
+  SceneConfig config;
+  config.contact_distance_m = 0.02;
+  config.level = level;
+  auto scene = std::make_unique<Scene>(config);
+  ObjectConfig floor;
+  floor.name = "floor";
+  floor.kind = ObjectKind::kStatic;
+  scene->addObject(floor, floorPoints());
+  return scene;
 }
 
 double lowestZ(const ShapeMatchingBody& body) {
@@ -86,14 +101,8 @@ bool allFinite(const Scene& scene) {
 class RestingBoxTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(RestingBoxTest, LandsAndRestsAtHalfTheContactDistance) {
-  SceneConfig config;
-  config.contact_distance_m = 0.02;
-  config.level = GetParam();
-  Scene scene(config);
-  ObjectConfig floor;
-  floor.name = "floor";
-  floor.kind = ObjectKind::kStatic;
-  scene.addObject(floor, floorPoints());
+  auto scene_on_floor = sceneOnFloor(GetParam());
+  Scene& scene = *scene_on_floor;
   ObjectConfig box;
   box.name = "box";
   box.shape.mode = DeformationMode::kRigid;
@@ -224,14 +233,9 @@ INSTANTIATE_TEST_SUITE_P(
 class SoftStackTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(SoftStackTest, PointsOfTwoObjectsStayApart) {
-  SceneConfig config;
-  config.contact_distance_m = 0.02;
-  config.level = GetParam();
-  Scene scene(config);
-  ObjectConfig floor;
-  floor.name = "floor";
-  floor.kind = ObjectKind::kStatic;
-  scene.addObject(floor, floorPoints());
+  auto scene_on_floor = sceneOnFloor(GetParam());
+  Scene& scene = *scene_on_floor;
+  const SceneConfig& config = scene.config();
   constexpr int kObjects = 6;
   for (int k = 0; k < kObjects; ++k) {
     ObjectConfig soft;
