@@ -648,8 +648,7 @@ void Scene::respond() {
         config_.contact_distance_m + config_.dt_s * object->body.meanVelocity().norm();
     const double reach = object->translation.norm();
     if (reach > allowed) object->translation *= allowed / reach;
-    object->body.translate(object->translation);
-    object->body.addVelocity(object->velocity_change);
+    object->body.moveRigidly(object->translation, object->velocity_change);
     object->translation.setZero();
     object->velocity_change.setZero();
     object->displacements.clear();

@@ -574,13 +574,28 @@ Eigen::Vector3d ShapeMatchingBody::meanVelocity() const {
   return momentum / config_.mass_kg;
 }
 
-void ShapeMatchingBody::translate(const Eigen::Vector3d& offset_m) {
+void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
+                                    const Eigen::Vector3d& velocity_change_mps) {
   if (!offset_m.allFinite()) throw std::invalid_argument("translation is not finite");
-  for (auto& x : positions_) x += offset_m;
+  if (!velocity_change_mps.allFinite()) {
+    throw std::invalid_argument("velocity change is not finite");
+  }
+  // Local pointers and copies: written through one vector's data, the other's pointer and
+  // the arguments would otherwise be read again for every point.
+  Eigen::Vector3d* positions = positions_.data();
+  Eigen::Vector3d* velocities = velocities_.data();
+  const Eigen::Vector3d offset = offset_m;
+  const Eigen::Vector3d change = velocity_change_mps;
+  for (std::size_t i = 0, count = positions_.size(); i < count; ++i) {
+    positions[i] += offset;
+    velocities[i] += change;
+  }
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     ClusterSums& sums = cluster_sums_[k];
     const double mass = cluster.total_weight_kg;
+    // The translation first, with the momentum it found, then the velocity change about the
+    // moved offset: the order of two separate calls, whose sums this must match.
     sums.second_moment += sums.offset * offset_m.transpose() + offset_m * sums.offset.transpose() +
                           mass * offset_m * offset_m.transpose();
     sums.angular_momentum += offset_m.cross(sums.momentum);
@@ -588,17 +603,7 @@ void ShapeMatchingBody::translate(const Eigen::Vector3d& offset_m) {
     sums.offset += mass * offset_m;
     deformations_[k].center_of_mass += offset_m;
     deformations_[k].translation += offset_m;
-  }
-}
-
-void ShapeMatchingBody::addVelocity(const Eigen::Vector3d& velocity_change_mps) {
-  if (!velocity_change_mps.allFinite()) {
-    throw std::invalid_argument("velocity change is not finite");
-  }
-  for (auto& v : velocities_) v += velocity_change_mps;
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    ClusterSums& sums = cluster_sums_[k];
-    sums.momentum += clusters_[k].total_weight_kg * velocity_change_mps;
+    sums.momentum += mass * velocity_change_mps;
     sums.angular_momentum += sums.offset.cross(velocity_change_mps);
   }
 }

@@ -137,15 +137,12 @@ class ShapeMatchingBody {
   ///        finite; the state is then unchanged.
   void displacePoints(const std::vector<PointDisplacement>& displacements);
 
-  /// Moves every point by the same offset (a collision response on the whole object): the
-  /// fit moves along and its residual is unchanged; the sums follow in O(clusters).
-  /// @throw std::invalid_argument if the offset is not finite.
-  void translate(const Eigen::Vector3d& offset_m);
-
-  /// Adds the same velocity to every point (an impulse on the whole object); the fit sums
-  /// follow in O(clusters).
-  /// @throw std::invalid_argument if the velocity is not finite.
-  void addVelocity(const Eigen::Vector3d& velocity_change_mps);
+  /// Moves every point by the same offset and adds the same velocity to each (a collision
+  /// response on the whole object), in one pass over the points: the fit moves along and its
+  /// residual is unchanged; the sums follow in O(clusters).
+  /// @throw std::invalid_argument if the offset or the velocity is not finite; the state is
+  ///        then unchanged.
+  void moveRigidly(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps);
 
   /// Mass-weighted mean velocity of the object, from the fit sums (O(clusters)).
   Eigen::Vector3d meanVelocity() const;

@@ -94,7 +94,7 @@ TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
         for (ShapeMatchingBody* body : {&scene.a, &scene.b}) {
           for (int s = 0; s < 3; ++s) body->step(0.02, Eigen::Vector3d(0, 0, -1.0));
         }
-        scene.b.translate({-0.01, 0.0, 0.0});
+        scene.b.moveRigidly({-0.01, 0.0, 0.0}, Eigen::Vector3d::Zero());
       }
       ta.beginCycle(GetParam());
       tb.beginCycle(GetParam());
