@@ -101,8 +101,8 @@ void buildPile(Scene& scene, std::size_t points) {
     const int column = i % 36;
     const int layer = i / 36;
     const double shift = layer % 2 ? 0.045 : -0.045;
-    const Eigen::Vector3d at(-0.45 + shift + 0.18 * (column % 6), -0.45 + shift + 0.18 * (column / 6),
-                             0.12 + 0.18 * layer);
+    const Eigen::Vector3d at(-0.45 + shift + 0.18 * (column % 6),
+                             -0.45 + shift + 0.18 * (column / 6), 0.12 + 0.18 * layer);
     const Eigen::Vector3d radii(0.05 + 0.03 * unit(engine), 0.05 + 0.03 * unit(engine),
                                 0.04 + 0.03 * unit(engine));
     const Eigen::Vector3d axis(unit(engine) - 0.5, unit(engine) - 0.5, unit(engine) - 0.5);
@@ -111,7 +111,8 @@ void buildPile(Scene& scene, std::size_t points) {
     std::vector<Eigen::Vector3d> points = sampleEllipsoid(each, radii, 100 + i);
     for (auto& p : points) p = turn * p;
     const DeformationMode mode = i % 2 ? DeformationMode::kQuadratic : DeformationMode::kLinear;
-    scene.addObject(softObject("object_" + std::to_string(i), mode, 1, 0.2), placed(std::move(points), at));
+    scene.addObject(softObject("object_" + std::to_string(i), mode, 1, 0.2),
+                    placed(std::move(points), at));
   }
 }
 

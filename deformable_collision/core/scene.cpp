@@ -82,8 +82,9 @@ class PointMoments {
 /// leaves only the nodes' centres stand for their points, and those of large nodes spread
 /// through the objects rather than along the face: there it is the difference of the means.
 /// Not normalised; zero if the means coincide.
-Eigen::Vector3d separatingDirection(SphereTree& a, SphereTree& b, const std::vector<SceneContact>& contacts,
-                                    std::size_t begin, std::size_t end, double regularisation_m2) {
+Eigen::Vector3d separatingDirection(SphereTree& a, SphereTree& b,
+                                    const std::vector<SceneContact>& contacts, std::size_t begin,
+                                    std::size_t end, double regularisation_m2) {
   const Eigen::Vector3d origin = a.sphere(contacts[begin].contact.node_a).center;
   // One query found all of a pair's contacts, at the leaves or above them.
   const bool leaves = contacts[begin].contact.point_a != SphereContact::kNoPoint;
@@ -711,9 +712,12 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
     const double spread = 0.1 * config_.contact_distance_m;
     const Eigen::Vector3d across =
         separatingDirection(a.tree, b.tree, contacts_, run_begin, run_end, spread * spread);
-    if (across.squaredNorm() > 0.0) pair_normal_ab = across.dot(side) < 0.0 ? Eigen::Vector3d(-across) : across;
+    if (across.squaredNorm() > 0.0) {
+      pair_normal_ab = across.dot(side) < 0.0 ? Eigen::Vector3d(-across) : across;
+    }
     const double length = pair_normal_ab.norm();
-    pair_normal_ab = length > 0.0 ? Eigen::Vector3d(pair_normal_ab / length) : Eigen::Vector3d::UnitZ();
+    pair_normal_ab =
+        length > 0.0 ? Eigen::Vector3d(pair_normal_ab / length) : Eigen::Vector3d::UnitZ();
   }
   for (std::size_t k = run_begin; k < run_end; ++k) {
     const SphereContact& c = contacts_[k].contact;

@@ -594,8 +594,8 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
     const Cluster& cluster = clusters_[k];
     ClusterSums& sums = cluster_sums_[k];
     const double mass = cluster.total_weight_kg;
-    // The translation first, with the momentum it found, then the velocity change about the
-    // moved offset: the order of two separate calls, whose sums this must match.
+    // Moved first, then pushed: the move's angular momentum takes the momentum before the
+    // push, and the push's the offset after the move.
     sums.second_moment += sums.offset * offset_m.transpose() + offset_m * sums.offset.transpose() +
                           mass * offset_m * offset_m.transpose();
     sums.angular_momentum += offset_m.cross(sums.momentum);

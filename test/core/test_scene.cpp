@@ -261,7 +261,9 @@ TEST_P(SoftStackTest, PointsOfTwoObjectsStayApart) {
     for (std::size_t a = 1; a < scene.objectCount(); ++a) {
       for (std::size_t b = a + 1; b < scene.objectCount(); ++b) {
         for (const auto& p : scene.body(a).positions()) {
-          for (const auto& q : scene.body(b).positions()) closest = std::min(closest, (p - q).norm());
+          for (const auto& q : scene.body(b).positions()) {
+            closest = std::min(closest, (p - q).norm());
+          }
         }
       }
     }
