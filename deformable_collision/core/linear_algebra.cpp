@@ -78,14 +78,15 @@ double spectralNorm(const Eigen::Matrix3d& matrix) {
   const double scale = matrix.cwiseAbs().maxCoeff();
   if (scale == 0.0) return 0.0;
   const Eigen::Matrix3d normalised = matrix / scale;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(normalised.transpose() * normalised,
-                                                              Eigen::EigenvaluesOnly);
-  // The Frobenius norm bounds the spectral norm from above: the answer when the
-  // eigensolver did not converge, and a cap on its rounding otherwise.
-  const double frobenius = normalised.norm();
-  if (solver.info() != Eigen::Success) return scale * frobenius;
+  // The closed form of a 3x3 symmetric eigenproblem: a detection cycle takes up to three
+  // norms per cluster, and the iterative solver took 2% of the pile's detection. Its largest
+  // eigenvalue is accurate to rounding relative to the matrix; the smaller ones, which lose
+  // accuracy, are not used.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
+  solver.computeDirect(normalised.transpose() * normalised, Eigen::EigenvaluesOnly);
   const double largest = std::sqrt(std::max(0.0, solver.eigenvalues().maxCoeff()));
-  return scale * std::min(largest, frobenius);
+  // The Frobenius norm bounds the spectral norm from above: a cap on the rounding.
+  return scale * std::min(largest, normalised.norm());
 }
 
 }  // namespace deformable_collision

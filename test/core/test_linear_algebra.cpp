@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/SVD>
 #include <cmath>
+#include <limits>
+#include <random>
 
 namespace deformable_collision {
 namespace {
@@ -106,6 +109,71 @@ INSTANTIATE_TEST_SUITE_P(
         DegenerateCase{"point_inversion", -Eigen::Matrix3d::Identity()},
         DegenerateCase{"nan", Eigen::Matrix3d::Constant(std::nan(""))}),
     [](const auto& info) { return std::string(info.param.name); });
+
+struct NormCase {
+  const char* name;
+  Eigen::Matrix3d matrix;
+};
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const NormCase& c, std::ostream* os) { *os << c.name; }
+
+class SpectralNormTest : public ::testing::TestWithParam<NormCase> {};
+
+// The sphere radii scale by this norm: it may exceed the largest singular value by rounding
+// but never fall short of it by more than the relative margin the radii add (1e-12).
+TEST_P(SpectralNormTest, IsTheLargestSingularValue) {
+  const Eigen::Matrix3d& m = GetParam().matrix;
+  const double largest = Eigen::JacobiSVD<Eigen::Matrix3d>(m).singularValues()(0);
+  const double norm = spectralNorm(m);
+  EXPECT_GE(norm, largest * (1.0 - 1e-14)) << m;
+  EXPECT_LE(norm, largest * (1.0 + 1e-12)) << m;
+}
+
+Eigen::Matrix3d turned(const Eigen::Vector3d& stretch) {
+  return Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, -2, 0.5).normalized()).matrix() *
+         stretch.asDiagonal() *
+         Eigen::AngleAxisd(-1.9, Eigen::Vector3d(0.3, 1, 1).normalized()).matrix();
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, SpectralNormTest,
+    ::testing::Values(
+        NormCase{"zero", Eigen::Matrix3d::Zero()},
+        NormCase{"identity", Eigen::Matrix3d::Identity()},
+        NormCase{"rotation", turned({1, 1, 1})},
+        NormCase{"stretched", turned({3, 2, 1})},
+        NormCase{"inverted", turned({-3, 2, 1})},
+        NormCase{"rank_one", rankOne()},
+        NormCase{"flat", turned({2, 1, 0})},
+        NormCase{"two_equal_largest", turned({2, 2, 0.5})},
+        NormCase{"nearly_equal", turned({1, 1 - 1e-15, 1 - 2e-15})},
+        NormCase{"anisotropic", turned({1e6, 1, 1e-6})},
+        NormCase{"huge", turned({3e300, 2e300, 1e300})},
+        NormCase{"tiny", turned({3e-300, 2e-300, 1e-300})}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(SpectralNorm, RandomMatricesOfEveryScale) {
+  std::mt19937_64 engine(11);
+  std::uniform_real_distribution<double> entry(-1.0, 1.0);
+  std::uniform_int_distribution<int> exponent(-100, 100);
+  for (int trial = 0; trial < 2000; ++trial) {
+    Eigen::Matrix3d m = Eigen::Matrix3d::NullaryExpr([&] { return entry(engine); });
+    m *= std::pow(10.0, exponent(engine));
+    const double largest = Eigen::JacobiSVD<Eigen::Matrix3d>(m).singularValues()(0);
+    const double norm = spectralNorm(m);
+    ASSERT_GE(norm, largest * (1.0 - 1e-14)) << "trial " << trial << "\n" << m;
+    ASSERT_LE(norm, largest * (1.0 + 1e-12)) << "trial " << trial << "\n" << m;
+  }
+}
+
+TEST(SpectralNorm, NonFiniteIsInfinite) {
+  EXPECT_EQ(spectralNorm(Eigen::Matrix3d::Constant(std::nan(""))),
+            std::numeric_limits<double>::infinity());
+  Eigen::Matrix3d m = Eigen::Matrix3d::Identity();
+  m(1, 2) = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(spectralNorm(m), std::numeric_limits<double>::infinity());
+}
 
 }  // namespace
 }  // namespace deformable_collision
