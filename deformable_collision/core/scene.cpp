@@ -22,17 +22,18 @@ double millisecondsBetween(Clock::time_point from, Clock::time_point to) {
 class PointMoments {
  public:
   explicit PointMoments(const Eigen::Vector3d& origin) : origin_(origin) {}
-  /// A node's points: a leaf's, where the query measured them this cycle, else its centre.
-  void addNode(SphereTree& tree, std::uint32_t node, bool measured_leaf) {
+  /// A node's points, `times` over: a leaf's, where the query measured them this cycle,
+  /// else its centre.
+  void addNode(SphereTree& tree, std::uint32_t node, bool measured_leaf, std::uint32_t times) {
     if (!measured_leaf) {
       const Eigen::Vector3d& c = tree.sphere(node).center;
-      addPoints(&c.x(), &c.y(), &c.z(), 1);
+      addPoints(&c.x(), &c.y(), &c.z(), 1, times);
       return;
     }
     const SphereNode& leaf = tree.node(node);
     const auto& positions = tree.leafPositions();
     addPoints(&positions(0, leaf.first_point), &positions(1, leaf.first_point),
-              &positions(2, leaf.first_point), leaf.point_count);
+              &positions(2, leaf.first_point), leaf.point_count, times);
   }
   Eigen::Vector3d mean() const { return Eigen::Vector3d(sum_[0], sum_[1], sum_[2]) / count_; }
   Eigen::Matrix3d scatter() const {
@@ -45,8 +46,10 @@ class PointMoments {
   }
 
  private:
-  /// `count` points from coordinate arrays (a leaf's columns, or one point's coordinates).
-  void addPoints(const double* xs, const double* ys, const double* zs, std::uint32_t count) {
+  /// `count` points from coordinate arrays (a leaf's columns, or one point's coordinates),
+  /// `times` over.
+  void addPoints(const double* xs, const double* ys, const double* zs, std::uint32_t count,
+                 std::uint32_t times) {
     // Nine separate sums: one running matrix through every point would chain each point's
     // additions to the last point's.
     double sum[3] = {}, products[6] = {};
@@ -62,9 +65,9 @@ class PointMoments {
       products[4] += y * z;
       products[5] += z * x;
     }
-    for (int r = 0; r < 3; ++r) sum_[r] += sum[r];
-    for (int r = 0; r < 6; ++r) products_[r] += products[r];
-    count_ += count;
+    for (int r = 0; r < 3; ++r) sum_[r] += times * sum[r];
+    for (int r = 0; r < 6; ++r) products_[r] += times * products[r];
+    count_ += times * count;
   }
 
   Eigen::Vector3d origin_;
@@ -73,27 +76,34 @@ class PointMoments {
   double count_ = 0.0;
 };
 
-/// The direction from b's contact nodes to a's, for the contacts of one object pair. At the
-/// leaves it is the one that best separates the two sides' points (Fisher's discriminant):
-/// the difference of their means, shrunk along the directions in which the points spread. A
-/// flat contact's points spread along the face, so its normal comes out even when a handful
-/// of contacts, scattered across the face, are all there is; the plain difference of the
-/// means tilts with them. `regularisation_m2` keeps it defined for one contact. Above the
-/// leaves only the nodes' centres stand for their points, and those of large nodes spread
-/// through the objects rather than along the face: there it is the difference of the means.
-/// Not normalised; zero if the means coincide.
-Eigen::Vector3d separatingDirection(SphereTree& a, SphereTree& b,
-                                    const std::vector<SceneContact>& contacts, std::size_t begin,
-                                    std::size_t end, double regularisation_m2) {
-  const Eigen::Vector3d origin = a.sphere(contacts[begin].contact.node_a).center;
-  // One query found all of a pair's contacts, at the leaves or above them.
-  const bool leaves = contacts[begin].contact.point_a != SphereContact::kNoPoint;
+/// The contact nodes of one side of an object pair, each once, with the number of the
+/// pair's contacts it takes part in: leaves take part in a few contacts each, and their
+/// points are then read once.
+struct ContactNodes {
+  SphereTree& tree;
+  const std::vector<std::uint32_t>& nodes;
+  const std::vector<std::uint32_t>& contacts_of_node;
+};
+
+/// The direction from b's contact nodes to a's, for the contacts of one object pair, each
+/// node weighted by its contacts. At the leaves it is the one that best separates the two
+/// sides' points (Fisher's discriminant): the difference of their means, shrunk along the
+/// directions in which the points spread. A flat contact's points spread along the face, so
+/// its normal comes out even when a handful of contacts, scattered across the face, are all
+/// there is; the plain difference of the means tilts with them. `regularisation_m2` keeps
+/// it defined for one contact. Above the leaves only the nodes' centres stand for their
+/// points, and those of large nodes spread through the objects rather than along the face:
+/// there it is the difference of the means. Not normalised; zero if the means coincide.
+Eigen::Vector3d separatingDirection(const ContactNodes& a, const ContactNodes& b, bool leaves,
+                                    double regularisation_m2) {
+  const Eigen::Vector3d origin = a.tree.sphere(a.nodes.front()).center;
   PointMoments side_a(origin);
   PointMoments side_b(origin);
-  for (std::size_t k = begin; k < end; ++k) {
-    const SphereContact& c = contacts[k].contact;
-    side_a.addNode(a, c.node_a, leaves);
-    side_b.addNode(b, c.node_b, leaves);
+  for (const std::uint32_t node : a.nodes) {
+    side_a.addNode(a.tree, node, leaves, a.contacts_of_node[node]);
+  }
+  for (const std::uint32_t node : b.nodes) {
+    side_b.addNode(b.tree, node, leaves, b.contacts_of_node[node]);
   }
   const Eigen::Vector3d apart = side_a.mean() - side_b.mean();
   if (!leaves) return apart;
@@ -131,6 +141,9 @@ struct Scene::Object {
       // Every point may be dented some cycle: the first such cycle must not allocate either.
       displaced_points.reserve(body.pointCount());
       displacements.reserve(body.pointCount());
+      contacts_of_node.assign(tree.nodeCount(), 0);
+      reach_of_node.assign(tree.nodeCount(), 0.0);
+      contact_nodes.reserve(tree.nodeCount());
       dent_of_node.assign(tree.nodeCount(), 0);
       dent_pair_of_node.assign(tree.nodeCount(), 0);
     }
@@ -287,6 +300,12 @@ struct Scene::Object {
   };
   std::vector<PendingDent> pending_dents;
   std::vector<DentDepth> dent_depths;
+  /// Response scratch of the pair being resolved (dynamic partners): its contact nodes, and
+  /// per node its number of the pair's contacts (0 outside them) and how far its points
+  /// reach along the pair's normal, towards the partner.
+  std::vector<std::uint32_t> contact_nodes;
+  std::vector<std::uint32_t> contacts_of_node;
+  std::vector<double> reach_of_node;
   /// Per node: its dent in pending_dents, valid for the pair resolved as dent_pair_of_node.
   std::vector<std::uint32_t> dent_of_node;
   std::vector<std::uint64_t> dent_pair_of_node;
@@ -708,16 +727,34 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   // point pairs of two clouds point every which way, and more so once the clouds have
   // passed into each other; the two sides of the contact do not.
   Eigen::Vector3d pair_normal_ab = side;
+  // One query found all of a pair's contacts, at the leaves or above them.
+  const bool leaves = contacts_[run_begin].contact.point_a != SphereContact::kNoPoint;
   if (!fixed_pair) {
+    for (std::size_t k = run_begin; k < run_end; ++k) {
+      const SphereContact& c = contacts_[k].contact;
+      if (a.contacts_of_node[c.node_a]++ == 0) a.contact_nodes.push_back(c.node_a);
+      if (b.contacts_of_node[c.node_b]++ == 0) b.contact_nodes.push_back(c.node_b);
+    }
     const double spread = 0.1 * config_.contact_distance_m;
     const Eigen::Vector3d across =
-        separatingDirection(a.tree, b.tree, contacts_, run_begin, run_end, spread * spread);
+        separatingDirection({a.tree, a.contact_nodes, a.contacts_of_node},
+                            {b.tree, b.contact_nodes, b.contacts_of_node}, leaves, spread * spread);
     if (across.squaredNorm() > 0.0) {
       pair_normal_ab = across.dot(side) < 0.0 ? Eigen::Vector3d(-across) : across;
     }
     const double length = pair_normal_ab.norm();
     pair_normal_ab =
         length > 0.0 ? Eigen::Vector3d(pair_normal_ab / length) : Eigen::Vector3d::UnitZ();
+    for (const std::uint32_t node : a.contact_nodes) {
+      if (leaves) a.reach_of_node[node] = reachAlong(a.tree, node, -pair_normal_ab);
+      a.contacts_of_node[node] = 0;
+    }
+    for (const std::uint32_t node : b.contact_nodes) {
+      if (leaves) b.reach_of_node[node] = reachAlong(b.tree, node, pair_normal_ab);
+      b.contacts_of_node[node] = 0;
+    }
+    a.contact_nodes.clear();
+    b.contact_nodes.clear();
   }
   for (std::size_t k = run_begin; k < run_end; ++k) {
     const SphereContact& c = contacts_[k].contact;
@@ -764,11 +801,9 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
       // other (it stays below the point spacing however deep), and piles sank into
       // themselves. Above the leaves, spheres stand for their points (the query's depth).
       push.normal = pair_normal_ab;
-      const double overlap = c.point_a == SphereContact::kNoPoint
-                                 ? c.depth_m
-                                 : reachAlong(b.tree, c.node_b, push.normal) +
-                                       reachAlong(a.tree, c.node_a, -push.normal) +
-                                       config_.contact_distance_m;
+      const double overlap =
+          leaves ? b.reach_of_node[c.node_b] + a.reach_of_node[c.node_a] + config_.contact_distance_m
+                 : c.depth_m;
       const double depth = overlap - 0.5 * config_.contact_distance_m -
                            (a.translation - b.translation).dot(push.normal);
       if (depth <= 0.0) continue;
