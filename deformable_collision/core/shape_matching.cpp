@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -850,44 +851,75 @@ void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>&
   // With p = x - reference, a point moved by dx with its velocity changed by dv adds to the
   // sums w dx, w dx q~^T, w dv, w ((p + dx) x dv + dx x v) and
   // w ((p + dx)(p + dx)^T - p p^T) = w (h dx^T + dx h^T) with h = p + dx / 2.
+  // The points a contact dents come one after the other with the same dx: over such a run
+  // (in one cluster) the terms in dx need only the sums of w, w p, w v and w q~, and their
+  // products with dx are formed once per run.
+  constexpr std::size_t kNoCluster = std::numeric_limits<std::size_t>::max();
+  struct Run {
+    std::size_t cluster = kNoCluster;
+    double dx[3] = {};
+    double weight = 0.0;
+    double weighted_offset[3] = {};
+    double weighted_velocity[3] = {};
+    double weighted_features[K] = {};
+    double momentum[3] = {};
+    double angular_momentum[3] = {};  ///< The terms in dv: w (p + dx) x dv.
+  } run;
+  const auto close_run = [&] {
+    if (run.cluster == kNoCluster) return;
+    DisplacedMoments& added = displaced_moments_scratch_[run.cluster];
+    const double* dx = run.dx;
+    const double* wv = run.weighted_velocity;
+    for (int r = 0; r < 3; ++r) {
+      added.offset[r] += run.weight * dx[r];
+      added.momentum[r] += run.momentum[r];
+      for (int c = 0; c < K; ++c) added.offset_features[r][c] += dx[r] * run.weighted_features[c];
+      const double half = run.weighted_offset[r] + 0.5 * run.weight * dx[r];
+      for (int c = 0; c < 3; ++c) added.half_second_moment[r][c] += half * dx[c];
+    }
+    added.angular_momentum[0] += run.angular_momentum[0] + dx[1] * wv[2] - dx[2] * wv[1];
+    added.angular_momentum[1] += run.angular_momentum[1] + dx[2] * wv[0] - dx[0] * wv[2];
+    added.angular_momentum[2] += run.angular_momentum[2] + dx[0] * wv[1] - dx[1] * wv[0];
+    added.largest_squared_m2 =
+        std::max(added.largest_squared_m2, dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2]);
+    added.touched = true;
+    run = Run{};
+  };
   for (const auto& d : displacements) {
-    const double* dx = d.displacement_m.data();
-    const double* dv = d.velocity_change_mps.data();
-    double* x = positions_[d.point].data();
-    double* v = velocities_[d.point].data();
-    const double dx_squared = dx[0] * dx[0] + dx[1] * dx[1] + dx[2] * dx[2];
+    const double dx[3] = {d.displacement_m.x(), d.displacement_m.y(), d.displacement_m.z()};
+    const double dv[3] = {d.velocity_change_mps.x(), d.velocity_change_mps.y(),
+                          d.velocity_change_mps.z()};
+    Eigen::Vector3d& position = positions_[d.point];
+    Eigen::Vector3d& velocity = velocities_[d.point];
     for (std::uint32_t m = point_slot_offsets_[d.point]; m < point_slot_offsets_[d.point + 1]; ++m) {
       const auto [k, slot] = point_slots_[m];
-      DisplacedMoments& added = displaced_moments_scratch_[k];
+      if (k != run.cluster || dx[0] != run.dx[0] || dx[1] != run.dx[1] || dx[2] != run.dx[2]) {
+        close_run();
+        run.cluster = k;
+        for (int r = 0; r < 3; ++r) run.dx[r] = dx[r];
+      }
       const Eigen::Vector3d& reference = cluster_sums_[k].reference;
       const double w = slotWeightKg(clusters_[k], slot, point_mass_kg_);
       double f[K];
       featureArray<K>(clusters_[k].rest_offsets[slot], f);
       double moved[3];
-      double half[3];
+      run.weight += w;
       for (int r = 0; r < 3; ++r) {
-        const double p = x[r] - reference[r];
+        const double p = position[r] - reference[r];
         moved[r] = p + dx[r];
-        half[r] = w * (p + 0.5 * dx[r]);
-        const double w_dx = w * dx[r];
-        added.offset[r] += w_dx;
-        added.momentum[r] += w * dv[r];
-        for (int c = 0; c < K; ++c) added.offset_features[r][c] += w_dx * f[c];
+        run.weighted_offset[r] += w * p;
+        run.weighted_velocity[r] += w * velocity[r];
+        run.momentum[r] += w * dv[r];
       }
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) added.half_second_moment[r][c] += half[r] * dx[c];
-      }
-      added.angular_momentum[0] += w * (moved[1] * dv[2] - moved[2] * dv[1] + dx[1] * v[2] - dx[2] * v[1]);
-      added.angular_momentum[1] += w * (moved[2] * dv[0] - moved[0] * dv[2] + dx[2] * v[0] - dx[0] * v[2]);
-      added.angular_momentum[2] += w * (moved[0] * dv[1] - moved[1] * dv[0] + dx[0] * v[1] - dx[1] * v[0]);
-      added.largest_squared_m2 = std::max(added.largest_squared_m2, dx_squared);
-      added.touched = true;
+      for (int c = 0; c < K; ++c) run.weighted_features[c] += w * f[c];
+      run.angular_momentum[0] += w * (moved[1] * dv[2] - moved[2] * dv[1]);
+      run.angular_momentum[1] += w * (moved[2] * dv[0] - moved[0] * dv[2]);
+      run.angular_momentum[2] += w * (moved[0] * dv[1] - moved[1] * dv[0]);
     }
-    for (int r = 0; r < 3; ++r) {
-      x[r] += dx[r];
-      v[r] += dv[r];
-    }
+    position += d.displacement_m;
+    velocity += d.velocity_change_mps;
   }
+  close_run();
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     DisplacedMoments& added = displaced_moments_scratch_[k];
     if (!added.touched) continue;
