@@ -79,15 +79,15 @@ INSTANTIATE_TEST_SUITE_P(
         RotationCase{"huge_scale", 0.3, {1, 1, 0}, {1e8, 2e8, 3e8}}),
     [](const auto& info) { return std::string(info.param.name); });
 
-struct DegenerateCase {
+struct NamedMatrix {
   const char* name;
   Eigen::Matrix3d matrix;
 };
 
 // Named in gtest output instead of as a byte dump.
-void PrintTo(const DegenerateCase& c, std::ostream* os) { *os << c.name; }
+void PrintTo(const NamedMatrix& c, std::ostream* os) { *os << c.name; }
 
-class DegenerateRotationTest : public ::testing::TestWithParam<DegenerateCase> {};
+class DegenerateRotationTest : public ::testing::TestWithParam<NamedMatrix> {};
 
 TEST_P(DegenerateRotationTest, StaysAProperRotation) {
   Eigen::Quaterniond q(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0, 1, 0)));
@@ -102,23 +102,15 @@ Eigen::Matrix3d rankOne() {
 INSTANTIATE_TEST_SUITE_P(
     Cases, DegenerateRotationTest,
     ::testing::Values(
-        DegenerateCase{"zero", Eigen::Matrix3d::Zero()},
-        DegenerateCase{"rank_one", rankOne()},
-        DegenerateCase{"rank_two", Eigen::Vector3d(1, 2, 0).asDiagonal().toDenseMatrix()},
-        DegenerateCase{"reflection", Eigen::Vector3d(-1, 1, 1).asDiagonal().toDenseMatrix()},
-        DegenerateCase{"point_inversion", -Eigen::Matrix3d::Identity()},
-        DegenerateCase{"nan", Eigen::Matrix3d::Constant(std::nan(""))}),
+        NamedMatrix{"zero", Eigen::Matrix3d::Zero()},
+        NamedMatrix{"rank_one", rankOne()},
+        NamedMatrix{"rank_two", Eigen::Vector3d(1, 2, 0).asDiagonal().toDenseMatrix()},
+        NamedMatrix{"reflection", Eigen::Vector3d(-1, 1, 1).asDiagonal().toDenseMatrix()},
+        NamedMatrix{"point_inversion", -Eigen::Matrix3d::Identity()},
+        NamedMatrix{"nan", Eigen::Matrix3d::Constant(std::nan(""))}),
     [](const auto& info) { return std::string(info.param.name); });
 
-struct NormCase {
-  const char* name;
-  Eigen::Matrix3d matrix;
-};
-
-// Named in gtest output instead of as a byte dump.
-void PrintTo(const NormCase& c, std::ostream* os) { *os << c.name; }
-
-class SpectralNormTest : public ::testing::TestWithParam<NormCase> {};
+class SpectralNormTest : public ::testing::TestWithParam<NamedMatrix> {};
 
 // The sphere radii scale by this norm: it may exceed the largest singular value by rounding
 // but never fall short of it by more than the relative margin the radii add (1e-12).
@@ -139,18 +131,18 @@ Eigen::Matrix3d turned(const Eigen::Vector3d& stretch) {
 INSTANTIATE_TEST_SUITE_P(
     Cases, SpectralNormTest,
     ::testing::Values(
-        NormCase{"zero", Eigen::Matrix3d::Zero()},
-        NormCase{"identity", Eigen::Matrix3d::Identity()},
-        NormCase{"rotation", turned({1, 1, 1})},
-        NormCase{"stretched", turned({3, 2, 1})},
-        NormCase{"inverted", turned({-3, 2, 1})},
-        NormCase{"rank_one", rankOne()},
-        NormCase{"flat", turned({2, 1, 0})},
-        NormCase{"two_equal_largest", turned({2, 2, 0.5})},
-        NormCase{"nearly_equal", turned({1, 1 - 1e-15, 1 - 2e-15})},
-        NormCase{"anisotropic", turned({1e6, 1, 1e-6})},
-        NormCase{"huge", turned({3e300, 2e300, 1e300})},
-        NormCase{"tiny", turned({3e-300, 2e-300, 1e-300})}),
+        NamedMatrix{"zero", Eigen::Matrix3d::Zero()},
+        NamedMatrix{"identity", Eigen::Matrix3d::Identity()},
+        NamedMatrix{"rotation", turned({1, 1, 1})},
+        NamedMatrix{"stretched", turned({3, 2, 1})},
+        NamedMatrix{"inverted", turned({-3, 2, 1})},
+        NamedMatrix{"rank_one", rankOne()},
+        NamedMatrix{"flat", turned({2, 1, 0})},
+        NamedMatrix{"two_equal_largest", turned({2, 2, 0.5})},
+        NamedMatrix{"nearly_equal", turned({1, 1 - 1e-15, 1 - 2e-15})},
+        NamedMatrix{"anisotropic", turned({1e6, 1, 1e-6})},
+        NamedMatrix{"huge", turned({3e300, 2e300, 1e300})},
+        NamedMatrix{"tiny", turned({3e-300, 2e-300, 1e-300})}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(SpectralNorm, RandomMatricesOfEveryScale) {
