@@ -84,9 +84,12 @@ double spectralNorm(const Eigen::Matrix3d& matrix) {
   // accuracy, are not used.
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver;
   solver.computeDirect(normalised.transpose() * normalised, Eigen::EigenvaluesOnly);
-  const double largest = std::sqrt(std::max(0.0, solver.eigenvalues().maxCoeff()));
-  // The Frobenius norm bounds the spectral norm from above: a cap on the rounding.
-  return scale * std::min(largest, normalised.norm());
+  const double largest_eigenvalue = solver.eigenvalues().maxCoeff();
+  // The Frobenius norm bounds the spectral norm from above: a cap on the rounding, and the
+  // answer should the closed form ever not give a number (a radius must never shrink to 0).
+  const double frobenius = normalised.norm();
+  if (!std::isfinite(largest_eigenvalue)) return scale * frobenius;
+  return scale * std::min(std::sqrt(std::max(0.0, largest_eigenvalue)), frobenius);
 }
 
 }  // namespace deformable_collision
