@@ -276,19 +276,13 @@ template <bool Wide>
 constexpr std::uint32_t kBucketLeaves = 8;
 
 /// The leaf contacts of two nodes of at most kBucketLeaves leaves each, every leaf sphere
-/// of one against every leaf sphere of the other.
+/// of one against every leaf sphere of the other. Both nodes' leaves must be current.
 template <bool Wide>
 [[gnu::always_inline]] inline void collideBuckets(SphereTree& a, const NodeState& bucket_a,
                                                   SphereTree& b, const NodeState& bucket_b,
                                                   double contact_distance_m,
                                                   ContactSink& contacts,
                                                   QueryCounters& counters) {
-  for (std::uint32_t k = bucket_a.first_leaf; k < bucket_a.first_leaf + bucket_a.leaf_count; ++k) {
-    a.current(a.leafNode(k));
-  }
-  for (std::uint32_t k = bucket_b.first_leaf; k < bucket_b.first_leaf + bucket_b.leaf_count; ++k) {
-    b.current(b.leafNode(k));
-  }
   counters.node_pairs_tested += bucket_a.leaf_count * bucket_b.leaf_count;
   const LeafSpheres& spheres_a = a.leafSpheres();
   const LeafSpheres& spheres_b = b.leafSpheres();
@@ -368,6 +362,9 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              ContactSink& contacts, QueryCounters& counters) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
+  // Towards the leaves, a node of kBucketLeaves leaves or fewer is measured with its leaves:
+  // its leaves are tested whenever it comes within reach of another.
+  const std::uint32_t leaf_limit = to_leaves ? kBucketLeaves : 0;
   // Branch-free where the outcome is a coin toss: which pairs end, which are in reach.
   const auto terminal = [level, to_leaves](const NodeState& node) {
     return to_leaves ? node.leaf_count <= kBucketLeaves
@@ -375,7 +372,10 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
   };
   // Pairs are tested before they are stacked, so the stack holds only pairs within reach.
   ++counters.node_pairs_tested;
-  if (!withinReach(a.sphere(0), b.sphere(0), contact_distance_m)) return;
+  if (!withinReach(a.current(0, leaf_limit).sphere, b.current(0, leaf_limit).sphere,
+                   contact_distance_m)) {
+    return;
+  }
   // Above the leaves a pair carries the least overlap of its own and its ancestors'
   // spheres: all of them bound its points, so their overlap is at most that. A contact's
   // depth is then one that the response can clear without the pair's ancestors leaving
@@ -385,8 +385,8 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
   std::size_t stacked = 1;
   while (stacked > 0) {
     const auto [ia, ib, least_overlap] = stack_[--stacked];
-    const NodeState& na = a.current(ia);
-    const NodeState& nb = b.current(ib);
+    const NodeState& na = a.current(ia, leaf_limit);
+    const NodeState& nb = b.current(ib, leaf_limit);
     const bool stop_a = terminal(na);
     const bool stop_b = terminal(nb);
     if (stop_a && stop_b) {
@@ -425,7 +425,7 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
     counters.node_pairs_tested += split.child_count;
     if (split_a) {
       for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
-        const Sphere& child = a.sphere(c);
+        const Sphere& child = a.current(c, leaf_limit).sphere;
         stack_[stacked] = {c, ib, to_leaves ? 0.0
                                             : std::min(least_overlap,
                                                        overlap(child, nb.sphere, contact_distance_m))};
@@ -433,7 +433,7 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
       }
     } else {
       for (std::uint32_t c = nb.first_child + nb.child_count; c-- > nb.first_child;) {
-        const Sphere& child = b.sphere(c);
+        const Sphere& child = b.current(c, leaf_limit).sphere;
         stack_[stacked] = {ia, c, to_leaves ? 0.0
                                             : std::min(least_overlap,
                                                        overlap(na.sphere, child, contact_distance_m))};

@@ -21,6 +21,15 @@ double withRoundingMargin(double radius, const Eigen::Vector3d& center) {
   return radius + kRoundingMargin * (radius + center.cwiseAbs().maxCoeff());
 }
 
+/// Where a node's sphere centre goes under its cluster's goal transform.
+Eigen::Vector3d deformedCenter(const SphereNode& node, const ClusterDeformation& deformation,
+                               DeformationMode mode) {
+  if (mode == DeformationMode::kQuadratic) {
+    return deformation.transform * quadraticFeatures(node.rest_center) + deformation.translation;
+  }
+  return deformation.transform.leftCols<3>() * node.rest_center + deformation.translation;
+}
+
 }  // namespace
 
 SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& config)
@@ -41,6 +50,7 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
   build(config);
   orderLeaves();
   states_.resize(nodes_.size());
+  leaves_stamps_.assign(nodes_.size(), 0);
   std::size_t most_children = 0;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     const SphereNode& node = nodes_[i];
@@ -241,16 +251,61 @@ const SphereTree::ClusterNorms& SphereTree::norms(std::size_t cluster) {
   return norms;
 }
 
+const NodeState& SphereTree::updateWithLeaves(std::uint32_t index, std::uint32_t leaf_limit) {
+  const SphereNode& node = nodes_[index];
+  if (node.leaf_count > leaf_limit || node.isLeaf()) return updateSphere(index);
+  if (method_ == SphereUpdate::kDeformation && node.cluster >= 0) {
+    measureWithLeaves(index);
+  } else {
+    current(index);
+    for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
+      current(leaf_nodes_[k]);
+    }
+  }
+  leaves_stamps_[index] = cycle_;
+  return states_[index];
+}
+
+void SphereTree::measureWithLeaves(std::uint32_t index) {
+  // The same spheres as deformationSphere() gives the node and each leaf, bit for bit: the
+  // leaves' points, in leaf order, are the node's points in its own order.
+  const SphereNode& node = nodes_[index];
+  const ClusterDeformation& deformation = body_->deformation(node.cluster);
+  const DeformationMode mode = body_->config().mode;
+  const Eigen::Vector3d center = deformedCenter(node, deformation, mode);
+  const bool exact = node.point_count <= exact_radius_points_;
+  const auto& positions = body_->positions();
+  double farthest_squared = 0.0;
+  for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
+    const std::uint32_t leaf_index = leaf_nodes_[k];
+    const SphereNode& leaf = nodes_[leaf_index];
+    const Eigen::Vector3d leaf_center = deformedCenter(leaf, deformation, mode);
+    double leaf_farthest_squared = 0.0;
+    for (std::uint32_t s = leaf.first_point; s < leaf.first_point + leaf.point_count; ++s) {
+      const Eigen::Vector3d& x = positions[point_indices_[s]];
+      slot_positions_.col(s) = x;
+      leaf_farthest_squared = std::max(leaf_farthest_squared, (x - leaf_center).squaredNorm());
+      if (exact) farthest_squared = std::max(farthest_squared, (x - center).squaredNorm());
+    }
+    counters_.spheres_updated += states_[leaf_index].stamp != cycle_;
+    setSphere(leaf_index, {leaf_center, withRoundingMargin(std::sqrt(leaf_farthest_squared), leaf_center)});
+  }
+  const double radius = exact ? std::sqrt(farthest_squared) : boundRadius(node, deformation);
+  counters_.spheres_updated += states_[index].stamp != cycle_;
+  setSphere(index, {center, withRoundingMargin(radius, center)});
+}
+
+double SphereTree::boundRadius(const SphereNode& node, const ClusterDeformation& deformation) {
+  const ClusterNorms& n = norms(node.cluster);
+  return n.linear * node.rest_radius_m + n.quadratic * node.quadratic_extent_m2 +
+         n.mixed * node.mixed_extent_m2 + deformation.goal_deviation_bound_m;
+}
+
 Sphere SphereTree::deformationSphere(std::uint32_t index) {
   const SphereNode& node = nodes_[index];
   const ClusterDeformation& deformation = body_->deformation(node.cluster);
   Sphere sphere;
-  if (body_->config().mode == DeformationMode::kQuadratic) {
-    sphere.center =
-        deformation.transform * quadraticFeatures(node.rest_center) + deformation.translation;
-  } else {
-    sphere.center = deformation.transform.leftCols<3>() * node.rest_center + deformation.translation;
-  }
+  sphere.center = deformedCenter(node, deformation, body_->config().mode);
   if (node.isLeaf() || node.point_count <= exact_radius_points_) {
     // A few points are quickly measured, and their exact distance is tighter than the bound.
     // A leaf's points are gathered for the leaf-pair tests in the same pass.
@@ -267,10 +322,7 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
     sphere.radius = withRoundingMargin(std::sqrt(farthest_squared), sphere.center);
     return sphere;
   }
-  const ClusterNorms& n = norms(node.cluster);
-  const double radius = n.linear * node.rest_radius_m + n.quadratic * node.quadratic_extent_m2 +
-                        n.mixed * node.mixed_extent_m2 + deformation.goal_deviation_bound_m;
-  sphere.radius = withRoundingMargin(radius, sphere.center);
+  sphere.radius = withRoundingMargin(boundRadius(node, deformation), sphere.center);
   return sphere;
 }
 

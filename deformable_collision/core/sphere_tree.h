@@ -109,6 +109,19 @@ class SphereTree {
     return states_[node].stamp == cycle_ ? states_[node] : updateSphere(node);
   }
 
+  /// current(), and if the node has at most `leaf_limit` leaves, the spheres and point
+  /// columns (leafPositions()) of all its leaves too, from one pass over its points. For a
+  /// query that will test a small node's leaves whenever it reaches the node: measured one
+  /// by one, each point would be read for the node and again for its leaf.
+  const NodeState& current(std::uint32_t node, std::uint32_t leaf_limit) {
+    const NodeState& state = states_[node];
+    if (state.stamp == cycle_ &&
+        (state.leaf_count > leaf_limit || state.isLeaf() || leaves_stamps_[node] == cycle_)) {
+      return state;
+    }
+    return updateWithLeaves(node, leaf_limit);
+  }
+
   /// The current positions of the leaves' points, one row per coordinate, a column per
   /// slot of pointIndices(), so that a leaf's coordinates are contiguous. A leaf's columns
   /// are valid once current() returned its state in this cycle.
@@ -143,6 +156,9 @@ class SphereTree {
   void build(const SphereTreeConfig& config);
   void computeRestData(std::uint32_t index);
   const NodeState& updateSphere(std::uint32_t index);
+  const NodeState& updateWithLeaves(std::uint32_t index, std::uint32_t leaf_limit);
+  void measureWithLeaves(std::uint32_t index);
+  double boundRadius(const SphereNode& node, const ClusterDeformation& deformation);
   const ClusterNorms& norms(std::size_t cluster);
   Sphere deformationSphere(std::uint32_t index);
   Sphere exactSphere(std::uint32_t index);
@@ -160,6 +176,8 @@ class SphereTree {
   SphereUpdate method_ = SphereUpdate::kDeformation;
   std::uint32_t cycle_ = 1;
   std::vector<NodeState> states_;
+  /// Per node, the cycle in which all its leaves were last made current with it.
+  std::vector<std::uint32_t> leaves_stamps_;
   std::vector<ClusterNorms> cluster_norms_;
   /// Visited leaves' positions in slot order, copied where a leaf's sphere is computed: the
   /// leaf-pair tests read each coordinate of a leaf contiguously, several points per

@@ -273,6 +273,48 @@ TEST(LazyUpdate, OnlyAskedSpheresAreComputedOncePerCycle) {
   EXPECT_EQ(tree.counters().spheres_updated, 0u);
 }
 
+TEST(LazyUpdate, SmallNodeMeasuredWithItsLeavesGivesEachItsOwnSphere) {
+  // Quadratic, several clusters, points in no order; exact_radius_points 0 bounds every
+  // inner node by the norms, 64 measures the small ones.
+  for (const int exact_radius_points : {0, 64}) {
+    ShapeMatchingBody body(sampleEllipsoid(900, {0.4, 0.25, 0.15}, 8),
+                           configFor(DeformationMode::kQuadratic, 3));
+    for (int step = 0; step < 3; ++step) body.step(0.05, Eigen::Vector3d(0.3, 0.0, -9.81));
+    SphereTree together(body, {2, 5, exact_radius_points});
+    SphereTree one_by_one(body, {2, 5, exact_radius_points});
+    constexpr std::uint32_t kLeafLimit = 4;
+    for (std::uint32_t i = 0; i < together.nodeCount(); ++i) {
+      const SphereNode& node = together.node(i);
+      if (node.isLeaf() || node.leaf_count > kLeafLimit) continue;
+      together.beginCycle();
+      one_by_one.beginCycle();
+      const Sphere& sphere = together.current(i, kLeafLimit).sphere;
+      EXPECT_EQ(together.counters().spheres_updated, 1 + node.leaf_count) << "node " << i;
+      EXPECT_EQ(sphere.center, one_by_one.sphere(i).center) << "node " << i;
+      EXPECT_EQ(sphere.radius, one_by_one.sphere(i).radius) << "node " << i;
+      for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
+        const std::uint32_t leaf = together.leafNode(k);
+        const Sphere& alone = one_by_one.sphere(leaf);
+        const LeafSpheres& leaves = together.leafSpheres();
+        EXPECT_EQ(Eigen::Vector3d(leaves.x[k], leaves.y[k], leaves.z[k]), alone.center) << "leaf " << leaf;
+        EXPECT_EQ(leaves.radius[k], alone.radius) << "leaf " << leaf;
+        EXPECT_EQ(together.sphere(leaf).center, alone.center) << "leaf " << leaf;
+        EXPECT_EQ(together.sphere(leaf).radius, alone.radius) << "leaf " << leaf;
+        const SphereNode& leaf_node = together.node(leaf);
+        const auto columns = Eigen::seqN(leaf_node.first_point, leaf_node.point_count);
+        EXPECT_EQ(together.leafPositions()(Eigen::all, columns),
+                  one_by_one.leafPositions()(Eigen::all, columns)) << "leaf " << leaf;
+      }
+      // Asked again, nothing is measured twice.
+      together.current(i, kLeafLimit);
+      for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
+        together.current(together.leafNode(k));
+      }
+      EXPECT_EQ(together.counters().spheres_updated, 1 + node.leaf_count) << "node " << i;
+    }
+  }
+}
+
 TEST(LazyUpdate, RigidObjectsComputeNoNorms) {
   ShapeMatchingBody body(sampleBox(500, {1, 1, 1}, 3), configFor(DeformationMode::kRigid, 2));
   SphereTree tree(body, {2, 8});
