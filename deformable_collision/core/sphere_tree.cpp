@@ -215,7 +215,14 @@ void SphereTree::computeRestData(std::uint32_t index) {
 
 void SphereTree::beginCycle(SphereUpdate method) {
   method_ = method;
-  ++cycle_;
+  // After 2^32 cycles (a few weeks at 1 kHz) the count comes round to the stamps of spheres
+  // still held: they are cleared first, or an old sphere would pass for a current one.
+  if (++cycle_ == 0) {
+    for (NodeState& state : states_) state.stamp = 0;
+    std::fill(leaves_stamps_.begin(), leaves_stamps_.end(), 0);
+    for (ClusterNorms& norms : cluster_norms_) norms.stamp = 0;
+    cycle_ = 1;
+  }
   counters_ = {};
   if (method == SphereUpdate::kBottomUpRefit) refitBottomUp();
 }
