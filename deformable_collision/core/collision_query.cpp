@@ -194,25 +194,27 @@ template <bool Wide>
   return mask;
 }
 
-/// Adds the contact of two leaves if a point pair is closer than the contact distance, at
-/// their closest pair: all pairs at once with wide vectors; otherwise the points of a near
-/// b's sphere, each against b's.
+/// Adds the contact of the leaves at `leaf_a` and `leaf_b` in the trees' leaf orders if a
+/// point pair is closer than the contact distance, at their closest pair: all pairs at once
+/// with wide vectors; otherwise the points of a near b's sphere, each against b's. Both
+/// leaves must be current.
 template <bool Wide>
-[[gnu::always_inline]] inline void closestLeafPair(const SphereTree& a, std::uint32_t node_a,
-                                                   const NodeState& leaf_a, const SphereTree& b,
-                                                   std::uint32_t node_b, const NodeState& leaf_b,
+[[gnu::always_inline]] inline void closestLeafPair(const SphereTree& a, std::uint32_t leaf_a,
+                                                   const SphereTree& b, std::uint32_t leaf_b,
                                                    double contact_distance_m, ContactSink& contacts,
                                                    QueryCounters& counters) {
-  const std::uint32_t count_b = leaf_b.point_count;
+  const std::uint32_t first_a = a.leafSlotStarts()[leaf_a];
+  const std::uint32_t first_b = b.leafSlotStarts()[leaf_b];
+  const std::uint32_t count_a = a.leafSlotStarts()[leaf_a + 1] - first_a;
+  const std::uint32_t count_b = b.leafSlotStarts()[leaf_b + 1] - first_b;
   const auto& pa = a.leafPositions();
   const auto& pb = b.leafPositions();
-  const double* bx = &pb(0, leaf_b.first_point);
-  const double* by = &pb(1, leaf_b.first_point);
-  const double* bz = &pb(2, leaf_b.first_point);
-  const double* ax = &pa(0, leaf_a.first_point);
-  const double* ay = &pa(1, leaf_a.first_point);
-  const double* az = &pa(2, leaf_a.first_point);
-  const std::uint32_t count_a = leaf_a.point_count;
+  const double* bx = &pb(0, first_b);
+  const double* by = &pb(1, first_b);
+  const double* bz = &pb(2, first_b);
+  const double* ax = &pa(0, first_a);
+  const double* ay = &pa(1, first_a);
+  const double* az = &pa(2, first_a);
   double best = contact_distance_m * contact_distance_m;
   // Offsets of the closest pair in the two leaves: the first point of a at the least
   // distance, and the first point of b at that distance from it.
@@ -235,11 +237,12 @@ template <bool Wide>
   } else
 #endif
   {
-    const Sphere& sphere_b = leaf_b.sphere;
-    const double reach = sphere_b.radius + contact_distance_m;
+    const LeafSpheres& spheres_b = b.leafSpheres();
+    const Eigen::Vector3d center_b(spheres_b.x[leaf_b], spheres_b.y[leaf_b], spheres_b.z[leaf_b]);
+    const double reach = spheres_b.radius[leaf_b] + contact_distance_m;
     counters.point_tests += count_a;
     for (std::uint32_t s = 0; s < count_a; ++s) {
-      if ((Eigen::Vector3d(ax[s], ay[s], az[s]) - sphere_b.center).squaredNorm() >= reach * reach) continue;
+      if ((Eigen::Vector3d(ax[s], ay[s], az[s]) - center_b).squaredNorm() >= reach * reach) continue;
       counters.point_tests += count_b;
       const double nearest = nearestSquaredDistance(bx, by, bz, count_b, ax[s], ay[s], az[s]);
       if (nearest < best) {
@@ -259,11 +262,11 @@ template <bool Wide>
     }
   }
   SphereContact& contact = contacts.add();
-  contact.node_a = node_a;
-  contact.node_b = node_b;
-  contact.level = std::max(leaf_a.level, leaf_b.level);
-  contact.point_a = a.pointIndices()[leaf_a.first_point + best_a];
-  contact.point_b = b.pointIndices()[leaf_b.first_point + best_b];
+  contact.node_a = a.leafNode(leaf_a);
+  contact.node_b = b.leafNode(leaf_b);
+  contact.level = std::max(a.node(contact.node_a).level, b.node(contact.node_b).level);
+  contact.point_a = a.pointIndices()[first_a + best_a];
+  contact.point_b = b.pointIndices()[first_b + best_b];
   const Eigen::Vector3d x(ax[best_a], ay[best_a], az[best_a]);
   const Eigen::Vector3d y(bx[best_b], by[best_b], bz[best_b]);
   contact.position = 0.5 * (x + y);
@@ -278,8 +281,8 @@ constexpr std::uint32_t kBucketLeaves = 8;
 /// The leaf contacts of two nodes of at most kBucketLeaves leaves each, every leaf sphere
 /// of one against every leaf sphere of the other. Both nodes' leaves must be current.
 template <bool Wide>
-[[gnu::always_inline]] inline void collideBuckets(SphereTree& a, const NodeState& bucket_a,
-                                                  SphereTree& b, const NodeState& bucket_b,
+[[gnu::always_inline]] inline void collideBuckets(const SphereTree& a, const NodeState& bucket_a,
+                                                  const SphereTree& b, const NodeState& bucket_b,
                                                   double contact_distance_m,
                                                   ContactSink& contacts,
                                                   QueryCounters& counters) {
@@ -302,23 +305,21 @@ template <bool Wide>
   while (within_reach != 0) {
     const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(within_reach));
     within_reach &= within_reach - 1;
-    const std::uint32_t node_a = a.leafNode(first_a + (bit >> 3));
-    const std::uint32_t node_b = b.leafNode(first_b + (bit & 7));
-    closestLeafPair<Wide>(a, node_a, a.current(node_a), b, node_b, b.current(node_b),
-                          contact_distance_m, contacts, counters);
+    closestLeafPair<Wide>(a, first_a + (bit >> 3), b, first_b + (bit & 7), contact_distance_m,
+                          contacts, counters);
   }
 }
 
 /// collideBuckets compiled for the wide vectors, its kernels inlined into it; and without.
 #if defined(__GNUC__) && defined(__x86_64__)
 __attribute__((target("avx512f"))) void collideBucketsWide(
-    SphereTree& a, const NodeState& bucket_a, SphereTree& b, const NodeState& bucket_b,
+    const SphereTree& a, const NodeState& bucket_a, const SphereTree& b, const NodeState& bucket_b,
     double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
   collideBuckets<true>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
 }
 #endif
 
-void collideBucketsPortable(SphereTree& a, const NodeState& bucket_a, SphereTree& b,
+void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, const SphereTree& b,
                             const NodeState& bucket_b, double contact_distance_m,
                             ContactSink& contacts, QueryCounters& counters) {
   collideBuckets<false>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);

@@ -21,13 +21,14 @@ double withRoundingMargin(double radius, const Eigen::Vector3d& center) {
   return radius + kRoundingMargin * (radius + center.cwiseAbs().maxCoeff());
 }
 
-/// Where a node's sphere centre goes under its cluster's goal transform.
-Eigen::Vector3d deformedCenter(const SphereNode& node, const ClusterDeformation& deformation,
-                               DeformationMode mode) {
+/// Where a node's sphere centre, at `rest_center` in its cluster's centred coordinates,
+/// goes under the cluster's goal transform.
+Eigen::Vector3d deformedCenter(const Eigen::Vector3d& rest_center,
+                               const ClusterDeformation& deformation, DeformationMode mode) {
   if (mode == DeformationMode::kQuadratic) {
-    return deformation.transform * quadraticFeatures(node.rest_center) + deformation.translation;
+    return deformation.transform * quadraticFeatures(rest_center) + deformation.translation;
   }
-  return deformation.transform.leftCols<3>() * node.rest_center + deformation.translation;
+  return deformation.transform.leftCols<3>() * rest_center + deformation.translation;
 }
 
 }  // namespace
@@ -174,6 +175,10 @@ void SphereTree::orderLeaves() {
   for (auto* values : {&leaf_spheres_.x, &leaf_spheres_.y, &leaf_spheres_.z, &leaf_spheres_.radius}) {
     values->assign(leaf_nodes_.size(), 0.0);
   }
+  leaf_slot_starts_ = leaf_starts;
+  leaf_slot_starts_.push_back(static_cast<std::uint32_t>(point_indices_.size()));
+  for (const std::uint32_t leaf : leaf_nodes_) leaf_rest_centers_.push_back(nodes_[leaf].rest_center);
+  leaf_stamps_.assign(leaf_nodes_.size(), 0);
 }
 
 void SphereTree::setSphere(std::uint32_t index, const Sphere& sphere) {
@@ -181,6 +186,7 @@ void SphereTree::setSphere(std::uint32_t index, const Sphere& sphere) {
   state.sphere = sphere;
   state.stamp = cycle_;
   if (state.child_count > 0) return;
+  leaf_stamps_[state.first_leaf] = cycle_;
   leaf_spheres_.x[state.first_leaf] = sphere.center.x();
   leaf_spheres_.y[state.first_leaf] = sphere.center.y();
   leaf_spheres_.z[state.first_leaf] = sphere.center.z();
@@ -220,6 +226,7 @@ void SphereTree::beginCycle(SphereUpdate method) {
   if (++cycle_ == 0) {
     for (NodeState& state : states_) state.stamp = 0;
     std::fill(leaves_stamps_.begin(), leaves_stamps_.end(), 0);
+    std::fill(leaf_stamps_.begin(), leaf_stamps_.end(), 0);
     for (ClusterNorms& norms : cluster_norms_) norms.stamp = 0;
     cycle_ = 1;
   }
@@ -228,6 +235,15 @@ void SphereTree::beginCycle(SphereUpdate method) {
 }
 
 const NodeState& SphereTree::updateSphere(std::uint32_t index) {
+  NodeState& state = states_[index];
+  if (state.isLeaf() && leaf_stamps_[state.first_leaf] == cycle_) {
+    // Measured with a node above it (measureWithLeaves).
+    const std::uint32_t k = state.first_leaf;
+    state.sphere.center = Eigen::Vector3d(leaf_spheres_.x[k], leaf_spheres_.y[k], leaf_spheres_.z[k]);
+    state.sphere.radius = leaf_spheres_.radius[k];
+    state.stamp = cycle_;
+    return state;
+  }
   Sphere sphere;
   if (method_ == SphereUpdate::kExactRefit) {
     sphere = exactSphere(index);
@@ -279,23 +295,26 @@ void SphereTree::measureWithLeaves(std::uint32_t index) {
   const SphereNode& node = nodes_[index];
   const ClusterDeformation& deformation = body_->deformation(node.cluster);
   const DeformationMode mode = body_->config().mode;
-  const Eigen::Vector3d center = deformedCenter(node, deformation, mode);
+  const Eigen::Vector3d center = deformedCenter(node.rest_center, deformation, mode);
   const bool exact = node.point_count <= exact_radius_points_;
   const auto& positions = body_->positions();
   double farthest_squared = 0.0;
   for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
-    const std::uint32_t leaf_index = leaf_nodes_[k];
-    const SphereNode& leaf = nodes_[leaf_index];
-    const Eigen::Vector3d leaf_center = deformedCenter(leaf, deformation, mode);
+    const Eigen::Vector3d leaf_center = deformedCenter(leaf_rest_centers_[k], deformation, mode);
     double leaf_farthest_squared = 0.0;
-    for (std::uint32_t s = leaf.first_point; s < leaf.first_point + leaf.point_count; ++s) {
+    for (std::uint32_t s = leaf_slot_starts_[k]; s < leaf_slot_starts_[k + 1]; ++s) {
       const Eigen::Vector3d& x = positions[point_indices_[s]];
       slot_positions_.col(s) = x;
       leaf_farthest_squared = std::max(leaf_farthest_squared, (x - leaf_center).squaredNorm());
       if (exact) farthest_squared = std::max(farthest_squared, (x - center).squaredNorm());
     }
-    counters_.spheres_updated += states_[leaf_index].stamp != cycle_;
-    setSphere(leaf_index, {leaf_center, withRoundingMargin(std::sqrt(leaf_farthest_squared), leaf_center)});
+    // The leaf's NodeState is left alone: it is copied from here if ever asked for.
+    counters_.spheres_updated += leaf_stamps_[k] != cycle_;
+    leaf_stamps_[k] = cycle_;
+    leaf_spheres_.x[k] = leaf_center.x();
+    leaf_spheres_.y[k] = leaf_center.y();
+    leaf_spheres_.z[k] = leaf_center.z();
+    leaf_spheres_.radius[k] = withRoundingMargin(std::sqrt(leaf_farthest_squared), leaf_center);
   }
   const double radius = exact ? std::sqrt(farthest_squared) : boundRadius(node, deformation);
   counters_.spheres_updated += states_[index].stamp != cycle_;
@@ -312,7 +331,7 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
   const SphereNode& node = nodes_[index];
   const ClusterDeformation& deformation = body_->deformation(node.cluster);
   Sphere sphere;
-  sphere.center = deformedCenter(node, deformation, body_->config().mode);
+  sphere.center = deformedCenter(node.rest_center, deformation, body_->config().mode);
   if (node.isLeaf() || node.point_count <= exact_radius_points_) {
     // A few points are quickly measured, and their exact distance is tighter than the bound.
     // A leaf's points are gathered for the leaf-pair tests in the same pass.

@@ -135,6 +135,9 @@ class SphereTree {
   /// The node of the leaf at `ordinal` in leaf order (the order of their points): the
   /// leaves under any node are a contiguous range of that order.
   std::uint32_t leafNode(std::uint32_t ordinal) const { return leaf_nodes_[ordinal]; }
+  /// The points of the leaf at `ordinal` in leaf order are the slots from
+  /// leafSlotStarts()[ordinal] up to leafSlotStarts()[ordinal + 1].
+  const std::vector<std::uint32_t>& leafSlotStarts() const { return leaf_slot_starts_; }
 
   const SphereNode& node(std::uint32_t index) const { return nodes_[index]; }
   std::size_t nodeCount() const { return nodes_.size(); }
@@ -183,8 +186,15 @@ class SphereTree {
   /// leaf-pair tests read each coordinate of a leaf contiguously, several points per
   /// instruction.
   Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> slot_positions_;
+  // By leaf order, what the pass over a small node's leaves and the leaf-pair tests read of
+  // a leaf, without a cache line of its own per leaf.
   LeafSpheres leaf_spheres_;
   std::vector<std::uint32_t> leaf_nodes_;
+  std::vector<std::uint32_t> leaf_slot_starts_;
+  std::vector<Eigen::Vector3d> leaf_rest_centers_;
+  /// The cycle of each leaf's entry in leaf_spheres_; a leaf's NodeState may be older and
+  /// is then copied from there when asked for.
+  std::vector<std::uint32_t> leaf_stamps_;
   std::vector<Eigen::Vector3d> scratch_points_;
   std::vector<std::uint32_t> scratch_order_;
   std::vector<Sphere> scratch_spheres_;

@@ -99,6 +99,14 @@ TEST(SphereTreeStructure, LeavesUnderANodeAreOneRangeOfLeafOrder) {
         std::sort(ranged.begin(), ranged.end());
         EXPECT_EQ(ranged, expected) << "node " << i;
       }
+      const auto& starts = tree.leafSlotStarts();
+      ASSERT_EQ(starts.size(), tree.node(0).leaf_count + 1);
+      EXPECT_EQ(starts.back(), tree.pointIndices().size());
+      for (std::uint32_t k = 0; k < tree.node(0).leaf_count; ++k) {
+        const SphereNode& leaf = tree.node(tree.leafNode(k));
+        EXPECT_EQ(starts[k], leaf.first_point) << "leaf " << k;
+        EXPECT_EQ(starts[k + 1] - starts[k], leaf.point_count) << "leaf " << k;
+      }
       for (const SphereUpdate method :
            {SphereUpdate::kDeformation, SphereUpdate::kExactRefit, SphereUpdate::kBottomUpRefit}) {
         tree.beginCycle(method);
