@@ -398,7 +398,7 @@ std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vect
   }
   if (config.kind == ObjectKind::kKinematic) checked.shape.mode = DeformationMode::kRigid;
   objects_.push_back(makeObject(checked, std::move(rest_points_m)));
-  sweep_order_.reserve(objects_.size());
+  sweep_entries_.reserve(objects_.size());
   return objects_.size() - 1;
 }
 
@@ -510,40 +510,72 @@ void Scene::refreshStaleTrees() {
 
 void Scene::sweepAndPrune() {
   const double margin = 0.5 * config_.contact_distance_m;
-  sweep_order_.clear();
-  for (std::uint32_t i = 0; i < objects_.size(); ++i) {
-    Object& o = *objects_[i];
+  if (sweep_entries_.size() != objects_.size()) {
+    sweep_entries_.clear();
+    for (std::uint32_t i = 0; i < objects_.size(); ++i) sweep_entries_.push_back({{}, i, false});
+  }
+  for (SweepEntry& entry : sweep_entries_) {
+    Object& o = *objects_[entry.object];
+    entry.is_static = o.config.kind == ObjectKind::kStatic;
     // Static objects keep their points' box, set when they were made.
-    if (o.config.kind != ObjectKind::kStatic) {
+    if (!entry.is_static) {
       const Sphere& root = o.tree.sphere(0);
       const Eigen::Vector3d reach = Eigen::Vector3d::Constant(root.radius + margin);
       o.sweep_box = Eigen::AlignedBox3d(root.center - reach, root.center + reach);
     }
-    sweep_order_.push_back(i);
+    entry.box = o.sweep_box;
   }
-  std::sort(sweep_order_.begin(), sweep_order_.end(), [&](std::uint32_t a, std::uint32_t b) {
-    const double start_a = objects_[a]->sweep_box.min().x();
-    const double start_b = objects_[b]->sweep_box.min().x();
-    return start_a < start_b || (start_a == start_b && a < b);
-  });
+  const auto before = [](const SweepEntry& a, const SweepEntry& b) {
+    return a.box.min().x() < b.box.min().x() ||
+           (a.box.min().x() == b.box.min().x() && a.object < b.object);
+  };
+  for (std::size_t i = 1; i < sweep_entries_.size(); ++i) {
+    const SweepEntry entry = sweep_entries_[i];
+    std::size_t j = i;
+    for (; j > 0 && before(entry, sweep_entries_[j - 1]); --j) sweep_entries_[j] = sweep_entries_[j - 1];
+    sweep_entries_[j] = entry;
+  }
   candidate_pairs_.clear();
   // Objects overlapping the current one along x are those after it whose interval starts
   // before its own ends; of those, the ones whose boxes overlap along y and z are kept.
-  for (std::size_t s = 0; s < sweep_order_.size(); ++s) {
-    const Object& first = *objects_[sweep_order_[s]];
-    for (std::size_t t = s + 1; t < sweep_order_.size(); ++t) {
-      const Object& second = *objects_[sweep_order_[t]];
-      if (second.sweep_box.min().x() > first.sweep_box.max().x()) break;
-      if (first.config.kind == ObjectKind::kStatic && second.config.kind == ObjectKind::kStatic) {
-        continue;
-      }
-      if (!first.sweep_box.intersects(second.sweep_box)) continue;
-      candidate_pairs_.emplace_back(std::min(sweep_order_[s], sweep_order_[t]),
-                                    std::max(sweep_order_[s], sweep_order_[t]));
+  for (std::size_t s = 0; s < sweep_entries_.size(); ++s) {
+    const SweepEntry& first = sweep_entries_[s];
+    for (std::size_t t = s + 1; t < sweep_entries_.size(); ++t) {
+      const SweepEntry& second = sweep_entries_[t];
+      if (second.box.min().x() > first.box.max().x()) break;
+      // Overlapping along x by the sweep; y and z decide, without a branch.
+      const bool overlap = (second.box.min().y() <= first.box.max().y()) &
+                           (first.box.min().y() <= second.box.max().y()) &
+                           (second.box.min().z() <= first.box.max().z()) &
+                           (first.box.min().z() <= second.box.max().z()) &
+                           !(first.is_static & second.is_static);
+      if (!overlap) continue;
+      candidate_pairs_.emplace_back(std::min(first.object, second.object),
+                                    std::max(first.object, second.object));
     }
   }
-  // Deterministic contact order, whatever the sweep order.
-  std::sort(candidate_pairs_.begin(), candidate_pairs_.end());
+  // Deterministic contact order, whatever the sweep order: by first object (a counting
+  // sort), then by second (an object has a handful of partners).
+  pair_offsets_.assign(objects_.size() + 1, 0);
+  for (const auto& pair : candidate_pairs_) ++pair_offsets_[pair.first + 1];
+  for (std::size_t i = 0; i < objects_.size(); ++i) pair_offsets_[i + 1] += pair_offsets_[i];
+  sorted_pairs_.resize(candidate_pairs_.size());
+  for (const auto& pair : candidate_pairs_) sorted_pairs_[pair_offsets_[pair.first]++] = pair;
+  // Each offset now ends its object's run, where the next object's begins.
+  std::uint32_t run_begin = 0;
+  for (std::size_t i = 0; i < objects_.size(); ++i) {
+    const std::uint32_t run_end = pair_offsets_[i];
+    for (std::uint32_t k = run_begin + 1; k < run_end; ++k) {
+      const auto pair = sorted_pairs_[k];
+      std::uint32_t j = k;
+      for (; j > run_begin && pair.second < sorted_pairs_[j - 1].second; --j) {
+        sorted_pairs_[j] = sorted_pairs_[j - 1];
+      }
+      sorted_pairs_[j] = pair;
+    }
+    run_begin = run_end;
+  }
+  candidate_pairs_.swap(sorted_pairs_);
 }
 
 namespace {

@@ -171,8 +171,17 @@ class Scene {
 
   SceneConfig config_;
   std::vector<std::unique_ptr<Object>> objects_;
-  std::vector<std::uint32_t> sweep_order_;
+  /// An object's box in the broad phase. Kept in the order of the last sweep: objects move
+  /// little between cycles, and an insertion sort restores the order in about linear time.
+  struct SweepEntry {
+    Eigen::AlignedBox3d box;
+    std::uint32_t object = 0;
+    bool is_static = false;
+  };
+  std::vector<SweepEntry> sweep_entries_;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> candidate_pairs_;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> sorted_pairs_;
+  std::vector<std::uint32_t> pair_offsets_;
   HierarchyQuery query_;
   std::vector<SceneContact> contacts_;
   std::vector<ContactPush> pushes_;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -370,6 +371,11 @@ TEST(Scene, LeafContactsCoverEveryClosePointPairOfTheScene) {
   std::size_t missed = 0;
   for (const auto& pair : truth) missed += covered.count(pair) == 0;
   EXPECT_EQ(missed, 0u) << "of " << truth.size() << " close point pairs";
+  // Object pairs come in the order of their objects, whatever order the sweep saw them in.
+  EXPECT_TRUE(std::is_sorted(contacts.begin(), contacts.end(),
+                             [](const SceneContact& x, const SceneContact& y) {
+                               return std::tie(x.object_a, x.object_b) < std::tie(y.object_a, y.object_b);
+                             }));
 }
 
 TEST(Scene, StaticObjectsNeverMove) {
