@@ -60,8 +60,9 @@ class HierarchyQuery {
   /// trees' maxLevel() the query runs to the leaves and tests points: a leaf pair is a
   /// contact if and only if one of its point pairs is closer than `contact_distance_m`, so
   /// the contacts cover exactly the point pairs that brute force finds; there, nodes of up
-  /// to eight leaves test their leaves' spheres all against all rather than descending pair
-  /// by pair. Spheres are computed lazily (SphereTree::sphere).
+  /// to eight leaves (buckets) test their leaves' spheres all against all rather than
+  /// descending pair by pair, and two objects of up to eight buckets each test those all
+  /// against all. Spheres are computed lazily (SphereTree::sphere).
   void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                ContactSink& contacts, QueryCounters& counters);
   /// collide() appending to a vector.
