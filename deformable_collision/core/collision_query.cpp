@@ -276,7 +276,8 @@ template <bool Wide>
 
 /// Leaves under a node at which the descent to the leaves stops: their spheres are then
 /// tested all against all, eight at a time, instead of pair by pair down the last levels.
-constexpr std::uint32_t kBucketLeaves = 8;
+constexpr std::uint32_t kBucketLeaves = SphereTree::kBucketLeaves;
+static_assert(kBucketLeaves * kBucketLeaves <= 64, "a bucket pair's leaf pairs are one mask");
 
 /// The leaf contacts of two nodes of at most kBucketLeaves leaves each, every leaf sphere
 /// of one against every leaf sphere of the other. Both nodes' leaves must be current.
@@ -325,83 +326,55 @@ void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, cons
   collideBuckets<false>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
 }
 
-/// The buckets of a small object: the nodes with kBucketLeaves leaves or fewer and no such
-/// node above them, at most kBucketLeaves of them.
-struct Buckets {
-  std::uint32_t count = 0;
-  std::uint32_t nodes[kBucketLeaves] = {};
-};
-
-/// The buckets of `tree`, false if it has more than kBucketLeaves of them.
-bool bucketsOf(const SphereTree& tree, Buckets& buckets) {
-  constexpr std::uint32_t kMostLeaves = kBucketLeaves * kBucketLeaves;
-  buckets.count = 0;
-  if (tree.node(0).leaf_count > kMostLeaves) return false;
-  // Stacked nodes hold disjoint sets of the root's leaves: never more than kMostLeaves.
-  std::uint32_t pending[kMostLeaves];
-  std::uint32_t stacked = 0;
-  pending[stacked++] = 0;
-  while (stacked > 0) {
-    const std::uint32_t index = pending[--stacked];
-    const SphereNode& node = tree.node(index);
-    if (node.leaf_count <= kBucketLeaves) {
-      if (buckets.count == kBucketLeaves) return false;
-      buckets.nodes[buckets.count++] = index;
-      continue;
-    }
-    for (std::uint32_t c = node.first_child + node.child_count; c-- > node.first_child;) {
-      pending[stacked++] = c;
-    }
-  }
-  return true;
-}
-
-/// The leaf contacts of two small objects, every bucket of one against every bucket of the
-/// other at once, rather than pair by pair down the levels above them: a small object in
+/// The leaf contacts of two small objects (of at most kBucketLeaves buckets each), every
+/// bucket of one against every bucket of the other at once, rather than pair by pair down the levels above them: a small object in
 /// reach of another has most of its buckets in reach too (a pile), and the whole object
 /// costs at most kBucketLeaves buckets however its contacts lie.
 template <bool Wide>
-[[gnu::always_inline]] inline void collideBucketSets(SphereTree& a, const Buckets& buckets_a,
-                                                     SphereTree& b, const Buckets& buckets_b,
+[[gnu::always_inline]] inline void collideBucketSets(SphereTree& a, SphereTree& b,
                                                      double contact_distance_m,
                                                      ContactSink& contacts,
                                                      QueryCounters& counters) {
+  const std::vector<std::uint32_t>& buckets_a = a.buckets();
+  const std::vector<std::uint32_t>& buckets_b = b.buckets();
+  const auto count_a = static_cast<std::uint32_t>(buckets_a.size());
+  const auto count_b = static_cast<std::uint32_t>(buckets_b.size());
   double x[kBucketLeaves], y[kBucketLeaves], z[kBucketLeaves], radius[kBucketLeaves];
-  for (std::uint32_t j = 0; j < buckets_b.count; ++j) {
-    const Sphere& sphere = b.current(buckets_b.nodes[j], kBucketLeaves).sphere;
+  for (std::uint32_t j = 0; j < count_b; ++j) {
+    const Sphere& sphere = b.current(buckets_b[j], kBucketLeaves).sphere;
     x[j] = sphere.center.x();
     y[j] = sphere.center.y();
     z[j] = sphere.center.z();
     radius[j] = sphere.radius;
   }
-  counters.node_pairs_tested += buckets_a.count * buckets_b.count;
-  for (std::uint32_t k = 0; k < buckets_a.count; ++k) {
-    const NodeState& bucket_a = a.current(buckets_a.nodes[k], kBucketLeaves);
+  counters.node_pairs_tested += count_a * count_b;
+  for (std::uint32_t k = 0; k < count_a; ++k) {
+    const NodeState& bucket_a = a.current(buckets_a[k], kBucketLeaves);
     const Sphere& sphere = bucket_a.sphere;
     std::uint32_t within_reach =
         reachMask<Wide>(sphere.center.x(), sphere.center.y(), sphere.center.z(),
-                        sphere.radius + contact_distance_m, x, y, z, radius, buckets_b.count);
+                        sphere.radius + contact_distance_m, x, y, z, radius, count_b);
     while (within_reach != 0) {
       const auto j = static_cast<std::uint32_t>(__builtin_ctz(within_reach));
       within_reach &= within_reach - 1;
-      collideBuckets<Wide>(a, bucket_a, b, b.current(buckets_b.nodes[j], kBucketLeaves),
+      collideBuckets<Wide>(a, bucket_a, b, b.current(buckets_b[j], kBucketLeaves),
                            contact_distance_m, contacts, counters);
     }
   }
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
-__attribute__((target("avx512f"))) void collideBucketSetsWide(
-    SphereTree& a, const Buckets& buckets_a, SphereTree& b, const Buckets& buckets_b,
-    double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
-  collideBucketSets<true>(a, buckets_a, b, buckets_b, contact_distance_m, contacts, counters);
+__attribute__((target("avx512f"))) void collideBucketSetsWide(SphereTree& a, SphereTree& b,
+                                                              double contact_distance_m,
+                                                              ContactSink& contacts,
+                                                              QueryCounters& counters) {
+  collideBucketSets<true>(a, b, contact_distance_m, contacts, counters);
 }
 #endif
 
-void collideBucketSetsPortable(SphereTree& a, const Buckets& buckets_a, SphereTree& b,
-                               const Buckets& buckets_b, double contact_distance_m,
+void collideBucketSetsPortable(SphereTree& a, SphereTree& b, double contact_distance_m,
                                ContactSink& contacts, QueryCounters& counters) {
-  collideBucketSets<false>(a, buckets_a, b, buckets_b, contact_distance_m, contacts, counters);
+  collideBucketSets<false>(a, b, contact_distance_m, contacts, counters);
 }
 
 /// Whether two spheres come closer than the contact distance.
@@ -456,15 +429,14 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
                    contact_distance_m)) {
     return;
   }
-  Buckets buckets_a, buckets_b;
-  if (to_leaves && bucketsOf(a, buckets_a) && bucketsOf(b, buckets_b)) {
+  if (to_leaves && a.buckets().size() <= kBucketLeaves && b.buckets().size() <= kBucketLeaves) {
 #if defined(__GNUC__) && defined(__x86_64__)
     if (wide_vectors_) {
-      collideBucketSetsWide(a, buckets_a, b, buckets_b, contact_distance_m, contacts, counters);
+      collideBucketSetsWide(a, b, contact_distance_m, contacts, counters);
       return;
     }
 #endif
-    collideBucketSetsPortable(a, buckets_a, b, buckets_b, contact_distance_m, contacts, counters);
+    collideBucketSetsPortable(a, b, contact_distance_m, contacts, counters);
     return;
   }
   // Above the leaves a pair carries the least overlap of its own and its ancestors'

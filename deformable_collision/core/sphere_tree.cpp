@@ -179,6 +179,20 @@ void SphereTree::orderLeaves() {
   leaf_slot_starts_.push_back(static_cast<std::uint32_t>(point_indices_.size()));
   for (const std::uint32_t leaf : leaf_nodes_) leaf_rest_centers_.push_back(nodes_[leaf].rest_center);
   leaf_stamps_.assign(leaf_nodes_.size(), 0);
+  // Depth first, children in order: the buckets come in leaf order.
+  std::vector<std::uint32_t> pending{0};
+  while (!pending.empty()) {
+    const SphereNode& node = nodes_[pending.back()];
+    const std::uint32_t index = pending.back();
+    pending.pop_back();
+    if (node.leaf_count <= kBucketLeaves) {
+      buckets_.push_back(index);
+      continue;
+    }
+    for (std::uint32_t c = node.first_child + node.child_count; c-- > node.first_child;) {
+      pending.push_back(c);
+    }
+  }
 }
 
 void SphereTree::setSphere(std::uint32_t index, const Sphere& sphere) {

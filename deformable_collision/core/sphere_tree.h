@@ -92,6 +92,10 @@ struct SphereTreeCounters {
 /// cluster's exact goal deviation bound (erratum 3) and a relative rounding margin.
 class SphereTree {
  public:
+  /// A tree's buckets are its nodes of at most this many leaves with no such node above
+  /// them: a query to the leaves tests the leaves of two buckets all against all.
+  static constexpr std::uint32_t kBucketLeaves = 8;
+
   /// @throw std::invalid_argument if branching < 2, leaf_size < 1 or exact_radius_points < 0.
   SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& config);
 
@@ -135,6 +139,8 @@ class SphereTree {
   /// The node of the leaf at `ordinal` in leaf order (the order of their points): the
   /// leaves under any node are a contiguous range of that order.
   std::uint32_t leafNode(std::uint32_t ordinal) const { return leaf_nodes_[ordinal]; }
+  /// The buckets (see kBucketLeaves), in leaf order.
+  const std::vector<std::uint32_t>& buckets() const { return buckets_; }
   /// The points of the leaf at `ordinal` in leaf order are the slots from
   /// leafSlotStarts()[ordinal] up to leafSlotStarts()[ordinal + 1].
   const std::vector<std::uint32_t>& leafSlotStarts() const { return leaf_slot_starts_; }
@@ -195,6 +201,7 @@ class SphereTree {
   /// The cycle of each leaf's entry in leaf_spheres_; a leaf's NodeState may be older and
   /// is then copied from there when asked for.
   std::vector<std::uint32_t> leaf_stamps_;
+  std::vector<std::uint32_t> buckets_;
   std::vector<Eigen::Vector3d> scratch_points_;
   std::vector<std::uint32_t> scratch_order_;
   std::vector<Sphere> scratch_spheres_;

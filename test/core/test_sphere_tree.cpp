@@ -99,6 +99,31 @@ TEST(SphereTreeStructure, LeavesUnderANodeAreOneRangeOfLeafOrder) {
         std::sort(ranged.begin(), ranged.end());
         EXPECT_EQ(ranged, expected) << "node " << i;
       }
+      // The buckets: the nodes of at most kBucketLeaves leaves whose parent has more, in
+      // leaf order, covering every leaf once.
+      std::vector<std::uint32_t> expected_buckets;
+      for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
+        const SphereNode& node = tree.node(i);
+        if (node.leaf_count > SphereTree::kBucketLeaves) continue;
+        bool parent_is_larger = i == 0;
+        for (std::uint32_t p = 0; p < tree.nodeCount(); ++p) {
+          const SphereNode& parent = tree.node(p);
+          if (i >= parent.first_child && i < parent.first_child + parent.child_count) {
+            parent_is_larger = parent.leaf_count > SphereTree::kBucketLeaves;
+          }
+        }
+        if (parent_is_larger) expected_buckets.push_back(i);
+      }
+      std::sort(expected_buckets.begin(), expected_buckets.end(), [&](std::uint32_t x, std::uint32_t y) {
+        return tree.node(x).first_leaf < tree.node(y).first_leaf;
+      });
+      EXPECT_EQ(tree.buckets(), expected_buckets);
+      std::uint32_t next_leaf = 0;
+      for (const std::uint32_t bucket : tree.buckets()) {
+        EXPECT_EQ(tree.node(bucket).first_leaf, next_leaf);
+        next_leaf += tree.node(bucket).leaf_count;
+      }
+      EXPECT_EQ(next_leaf, tree.node(0).leaf_count);
       const auto& starts = tree.leafSlotStarts();
       ASSERT_EQ(starts.size(), tree.node(0).leaf_count + 1);
       EXPECT_EQ(starts.back(), tree.pointIndices().size());
