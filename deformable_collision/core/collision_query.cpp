@@ -242,7 +242,8 @@ template <bool Wide>
     const double reach = spheres_b.radius[leaf_b] + contact_distance_m;
     counters.point_tests += count_a;
     for (std::uint32_t s = 0; s < count_a; ++s) {
-      if ((Eigen::Vector3d(ax[s], ay[s], az[s]) - center_b).squaredNorm() >= reach * reach) continue;
+      const Eigen::Vector3d point(ax[s], ay[s], az[s]);
+      if ((point - center_b).squaredNorm() >= reach * reach) continue;
       counters.point_tests += count_b;
       const double nearest = nearestSquaredDistance(bx, by, bz, count_b, ax[s], ay[s], az[s]);
       if (nearest < best) {
@@ -327,9 +328,10 @@ void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, cons
 }
 
 /// The leaf contacts of two small objects (of at most kBucketLeaves buckets each), every
-/// bucket of one against every bucket of the other at once, rather than pair by pair down the levels above them: a small object in
-/// reach of another has most of its buckets in reach too (a pile), and the whole object
-/// costs at most kBucketLeaves buckets however its contacts lie.
+/// bucket of one against every bucket of the other at once, rather than pair by pair down
+/// the levels above them: a small object in reach of another has most of its buckets in
+/// reach too (a pile), and the whole object costs at most kBucketLeaves buckets however its
+/// contacts lie.
 template <bool Wide>
 [[gnu::always_inline]] inline void collideBucketSets(SphereTree& a, SphereTree& b,
                                                      double contact_distance_m,

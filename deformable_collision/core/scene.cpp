@@ -532,7 +532,9 @@ void Scene::sweepAndPrune() {
   for (std::size_t i = 1; i < sweep_entries_.size(); ++i) {
     const SweepEntry entry = sweep_entries_[i];
     std::size_t j = i;
-    for (; j > 0 && before(entry, sweep_entries_[j - 1]); --j) sweep_entries_[j] = sweep_entries_[j - 1];
+    for (; j > 0 && before(entry, sweep_entries_[j - 1]); --j) {
+      sweep_entries_[j] = sweep_entries_[j - 1];
+    }
     sweep_entries_[j] = entry;
   }
   candidate_pairs_.clear();

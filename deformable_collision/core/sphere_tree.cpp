@@ -177,7 +177,9 @@ void SphereTree::orderLeaves() {
   }
   leaf_slot_starts_ = leaf_starts;
   leaf_slot_starts_.push_back(static_cast<std::uint32_t>(point_indices_.size()));
-  for (const std::uint32_t leaf : leaf_nodes_) leaf_rest_centers_.push_back(nodes_[leaf].rest_center);
+  for (const std::uint32_t leaf : leaf_nodes_) {
+    leaf_rest_centers_.push_back(nodes_[leaf].rest_center);
+  }
   leaf_stamps_.assign(leaf_nodes_.size(), 0);
   // Depth first, children in order: the buckets come in leaf order.
   std::vector<std::uint32_t> pending{0};
@@ -253,7 +255,8 @@ const NodeState& SphereTree::updateSphere(std::uint32_t index) {
   if (state.isLeaf() && leaf_stamps_[state.first_leaf] == cycle_) {
     // Measured with a node above it (measureWithLeaves).
     const std::uint32_t k = state.first_leaf;
-    state.sphere.center = Eigen::Vector3d(leaf_spheres_.x[k], leaf_spheres_.y[k], leaf_spheres_.z[k]);
+    state.sphere.center =
+        Eigen::Vector3d(leaf_spheres_.x[k], leaf_spheres_.y[k], leaf_spheres_.z[k]);
     state.sphere.radius = leaf_spheres_.radius[k];
     state.stamp = cycle_;
     return state;

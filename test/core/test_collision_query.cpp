@@ -62,8 +62,9 @@ TwoBodies randomScene(std::uint64_t seed, bool small = false) {
   ShapeMatchingConfig cb = ca;
   cb.mode = static_cast<DeformationMode>((seed + 1) % 3);
   const Points rest_a = sampleEllipsoid(small ? 250 : 700, {0.3, 0.2, 0.2}, seed * 2 + 1);
-  const Points rest_b = shifted(sampleEllipsoid(small ? 200 : 600, {0.25, 0.25, 0.15}, seed * 2 + 2),
-                                {0.35 + 0.1 * unit(engine), 0.05 * unit(engine), 0.0});
+  const Points rest_b =
+      shifted(sampleEllipsoid(small ? 200 : 600, {0.25, 0.25, 0.15}, seed * 2 + 2),
+              {0.35 + 0.1 * unit(engine), 0.05 * unit(engine), 0.0});
   TwoBodies scene{ShapeMatchingBody(rest_a, ca), ShapeMatchingBody(rest_b, cb)};
   std::normal_distribution<double> noise(0.0, 0.02);
   for (ShapeMatchingBody* body : {&scene.a, &scene.b}) {

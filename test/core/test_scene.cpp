@@ -374,7 +374,8 @@ TEST(Scene, LeafContactsCoverEveryClosePointPairOfTheScene) {
   // Object pairs come in the order of their objects, whatever order the sweep saw them in.
   EXPECT_TRUE(std::is_sorted(contacts.begin(), contacts.end(),
                              [](const SceneContact& x, const SceneContact& y) {
-                               return std::tie(x.object_a, x.object_b) < std::tie(y.object_a, y.object_b);
+                               return std::tie(x.object_a, x.object_b) <
+                                      std::tie(y.object_a, y.object_b);
                              }));
 }
 

@@ -114,9 +114,10 @@ TEST(SphereTreeStructure, LeavesUnderANodeAreOneRangeOfLeafOrder) {
         }
         if (parent_is_larger) expected_buckets.push_back(i);
       }
-      std::sort(expected_buckets.begin(), expected_buckets.end(), [&](std::uint32_t x, std::uint32_t y) {
-        return tree.node(x).first_leaf < tree.node(y).first_leaf;
-      });
+      std::sort(expected_buckets.begin(), expected_buckets.end(),
+                [&](std::uint32_t x, std::uint32_t y) {
+                  return tree.node(x).first_leaf < tree.node(y).first_leaf;
+                });
       EXPECT_EQ(tree.buckets(), expected_buckets);
       std::uint32_t next_leaf = 0;
       for (const std::uint32_t bucket : tree.buckets()) {
@@ -329,7 +330,8 @@ TEST(LazyUpdate, SmallNodeMeasuredWithItsLeavesGivesEachItsOwnSphere) {
         const std::uint32_t leaf = together.leafNode(k);
         const Sphere& alone = one_by_one.sphere(leaf);
         const LeafSpheres& leaves = together.leafSpheres();
-        EXPECT_EQ(Eigen::Vector3d(leaves.x[k], leaves.y[k], leaves.z[k]), alone.center) << "leaf " << leaf;
+        EXPECT_EQ(Eigen::Vector3d(leaves.x[k], leaves.y[k], leaves.z[k]), alone.center)
+            << "leaf " << leaf;
         EXPECT_EQ(leaves.radius[k], alone.radius) << "leaf " << leaf;
         EXPECT_EQ(together.sphere(leaf).center, alone.center) << "leaf " << leaf;
         EXPECT_EQ(together.sphere(leaf).radius, alone.radius) << "leaf " << leaf;
