@@ -327,20 +327,19 @@ void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, cons
   collideBuckets<false>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
 }
 
-/// The leaf contacts of two small objects (of at most kBucketLeaves buckets each), every
-/// bucket of one against every bucket of the other at once, rather than pair by pair down
-/// the levels above them: a small object in reach of another has most of its buckets in
-/// reach too (a pile), and the whole object costs at most kBucketLeaves buckets however its
-/// contacts lie.
+/// The leaf contacts of two sets of at most kBucketLeaves buckets each, every bucket of one
+/// against every bucket of the other at once: all the buckets of a small object (one of at
+/// most kBucketLeaves buckets) rather than pair by pair down the levels above them. A small
+/// object in reach of another has most of its buckets in reach too (a pile), and costs at
+/// most kBucketLeaves buckets however its contacts lie.
 template <bool Wide>
-[[gnu::always_inline]] inline void collideBucketSets(SphereTree& a, SphereTree& b,
+[[gnu::always_inline]] inline void collideBucketSets(SphereTree& a, const std::uint32_t* buckets_a,
+                                                     std::uint32_t count_a, SphereTree& b,
+                                                     const std::uint32_t* buckets_b,
+                                                     std::uint32_t count_b,
                                                      double contact_distance_m,
                                                      ContactSink& contacts,
                                                      QueryCounters& counters) {
-  const std::vector<std::uint32_t>& buckets_a = a.buckets();
-  const std::vector<std::uint32_t>& buckets_b = b.buckets();
-  const auto count_a = static_cast<std::uint32_t>(buckets_a.size());
-  const auto count_b = static_cast<std::uint32_t>(buckets_b.size());
   double x[kBucketLeaves], y[kBucketLeaves], z[kBucketLeaves], radius[kBucketLeaves];
   for (std::uint32_t j = 0; j < count_b; ++j) {
     const Sphere& sphere = b.current(buckets_b[j], kBucketLeaves).sphere;
@@ -366,17 +365,22 @@ template <bool Wide>
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
-__attribute__((target("avx512f"))) void collideBucketSetsWide(SphereTree& a, SphereTree& b,
-                                                              double contact_distance_m,
-                                                              ContactSink& contacts,
-                                                              QueryCounters& counters) {
-  collideBucketSets<true>(a, b, contact_distance_m, contacts, counters);
+__attribute__((target("avx512f"))) void collideBucketSetsWide(
+    SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a, SphereTree& b,
+    const std::uint32_t* buckets_b, std::uint32_t count_b, double contact_distance_m,
+    ContactSink& contacts, QueryCounters& counters) {
+  collideBucketSets<true>(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+                          contacts, counters);
 }
 #endif
 
-void collideBucketSetsPortable(SphereTree& a, SphereTree& b, double contact_distance_m,
-                               ContactSink& contacts, QueryCounters& counters) {
-  collideBucketSets<false>(a, b, contact_distance_m, contacts, counters);
+void collideBucketSetsPortable(SphereTree& a, const std::uint32_t* buckets_a,
+                               std::uint32_t count_a, SphereTree& b,
+                               const std::uint32_t* buckets_b, std::uint32_t count_b,
+                               double contact_distance_m, ContactSink& contacts,
+                               QueryCounters& counters) {
+  collideBucketSets<false>(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+                           contacts, counters);
 }
 
 /// Whether two spheres come closer than the contact distance.
@@ -431,14 +435,26 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
                    contact_distance_m)) {
     return;
   }
-  if (to_leaves && a.buckets().size() <= kBucketLeaves && b.buckets().size() <= kBucketLeaves) {
+  const auto bucketSets = [&](const std::uint32_t* buckets_a, std::uint32_t count_a,
+                              const std::uint32_t* buckets_b, std::uint32_t count_b) {
 #if defined(__GNUC__) && defined(__x86_64__)
     if (wide_vectors_) {
-      collideBucketSetsWide(a, b, contact_distance_m, contacts, counters);
+      collideBucketSetsWide(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+                            contacts, counters);
       return;
     }
 #endif
-    collideBucketSetsPortable(a, b, contact_distance_m, contacts, counters);
+    collideBucketSetsPortable(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+                              contacts, counters);
+  };
+  // A small object is never descended: its buckets meet the other's as a set, the other
+  // object's buckets one at a time if it is not small too.
+  const bool small_a = to_leaves && a.buckets().size() <= kBucketLeaves;
+  const bool small_b = to_leaves && b.buckets().size() <= kBucketLeaves;
+  const auto bucket_count_a = static_cast<std::uint32_t>(a.buckets().size());
+  const auto bucket_count_b = static_cast<std::uint32_t>(b.buckets().size());
+  if (small_a && small_b) {
+    bucketSets(a.buckets().data(), bucket_count_a, b.buckets().data(), bucket_count_b);
     return;
   }
   // Above the leaves a pair carries the least overlap of its own and its ancestors'
@@ -452,9 +468,16 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
     const auto [ia, ib, least_overlap] = stack_[--stacked];
     const NodeState& na = a.current(ia, leaf_limit);
     const NodeState& nb = b.current(ib, leaf_limit);
-    const bool stop_a = terminal(na);
-    const bool stop_b = terminal(nb);
+    const bool stop_a = small_a || terminal(na);
+    const bool stop_b = small_b || terminal(nb);
     if (stop_a && stop_b) {
+      if (small_a || small_b) {
+        const std::uint32_t bucket_a = ia;
+        const std::uint32_t bucket_b = ib;
+        bucketSets(small_a ? a.buckets().data() : &bucket_a, small_a ? bucket_count_a : 1,
+                   small_b ? b.buckets().data() : &bucket_b, small_b ? bucket_count_b : 1);
+        continue;
+      }
       if (to_leaves) {
 #if defined(__GNUC__) && defined(__x86_64__)
         if (wide_vectors_) {

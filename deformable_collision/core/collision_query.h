@@ -61,8 +61,9 @@ class HierarchyQuery {
   /// contact if and only if one of its point pairs is closer than `contact_distance_m`, so
   /// the contacts cover exactly the point pairs that brute force finds; there, nodes of up
   /// to eight leaves (buckets) test their leaves' spheres all against all rather than
-  /// descending pair by pair, and two objects of up to eight buckets each test those all
-  /// against all. Spheres are computed lazily (SphereTree::sphere).
+  /// descending pair by pair; an object of up to eight buckets is not descended: its buckets
+  /// are tested all at once against the other's (all of them if it is small too, else each
+  /// bucket the descent reaches). Spheres are computed lazily (SphereTree::sphere).
   void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                ContactSink& contacts, QueryCounters& counters);
   /// collide() appending to a vector.

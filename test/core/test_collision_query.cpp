@@ -44,15 +44,14 @@ std::set<PointPair> coveredPairs(const SphereTree& a, const SphereTree& b,
   return pairs;
 }
 
-/// Two deformed objects overlapping over part of their volume, from a seed; small ones
-/// (250 and 200 points) have few enough leaves that the query tests their buckets all
-/// against all.
+/// Two deformed objects overlapping over part of their volume, from a seed. An object of
+/// 250 or 200 points has few enough leaves that the query tests all its buckets at once.
 struct TwoBodies {
   ShapeMatchingBody a;
   ShapeMatchingBody b;
 };
 
-TwoBodies randomScene(std::uint64_t seed, bool small = false) {
+TwoBodies randomScene(std::uint64_t seed, std::size_t points_a = 700, std::size_t points_b = 600) {
   std::mt19937_64 engine(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   ShapeMatchingConfig ca;
@@ -61,9 +60,9 @@ TwoBodies randomScene(std::uint64_t seed, bool small = false) {
   ca.stiffness = unit(engine);
   ShapeMatchingConfig cb = ca;
   cb.mode = static_cast<DeformationMode>((seed + 1) % 3);
-  const Points rest_a = sampleEllipsoid(small ? 250 : 700, {0.3, 0.2, 0.2}, seed * 2 + 1);
+  const Points rest_a = sampleEllipsoid(points_a, {0.3, 0.2, 0.2}, seed * 2 + 1);
   const Points rest_b =
-      shifted(sampleEllipsoid(small ? 200 : 600, {0.25, 0.25, 0.15}, seed * 2 + 2),
+      shifted(sampleEllipsoid(points_b, {0.25, 0.25, 0.15}, seed * 2 + 2),
               {0.35 + 0.1 * unit(engine), 0.05 * unit(engine), 0.0});
   TwoBodies scene{ShapeMatchingBody(rest_a, ca), ShapeMatchingBody(rest_b, cb)};
   std::normal_distribution<double> noise(0.0, 0.02);
@@ -83,11 +82,13 @@ class NoMissedContactTest : public ::testing::TestWithParam<SphereUpdate> {};
 
 TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
   const double contact_distance = 0.02;
-  for (std::uint64_t seed = 0; seed < 18; ++seed) {
-    const bool small = seed >= 12;
-    TwoBodies scene = randomScene(seed, small);
+  // Seeds 12 to 17: both objects small; 18 to 20: a small, b not.
+  for (std::uint64_t seed = 0; seed < 21; ++seed) {
+    const bool small_a = seed >= 12;
+    const bool small_b = seed >= 12 && seed < 18;
+    TwoBodies scene = randomScene(seed, small_a ? 250 : 700, small_b ? 200 : 600);
     SphereTree ta(scene.a, {2, 6});
-    SphereTree tb(scene.b, small ? SphereTreeConfig{2, 5} : SphereTreeConfig{3, 4});
+    SphereTree tb(scene.b, small_b ? SphereTreeConfig{2, 5} : SphereTreeConfig{3, 4});
     std::vector<SphereContact> contacts;
     QueryCounters counters;
     // A second cycle after the bodies moved on: nothing of the first cycle's points may
@@ -146,8 +147,8 @@ TEST(WideVectors, FindTheSameContactsBitForBit) {
   const double contact_distance = 0.02;
   for (const auto& [config_a, config_b] :
        {std::pair<SphereTreeConfig, SphereTreeConfig>{{2, 8}, {2, 5}}, {{2, 20}, {3, 13}}}) {
-    for (std::uint64_t seed = 0; seed < 9; ++seed) {
-      TwoBodies scene = randomScene(seed, seed >= 6);
+    for (std::uint64_t seed = 0; seed < 11; ++seed) {
+      TwoBodies scene = randomScene(seed, seed >= 6 ? 250 : 700, seed >= 6 && seed < 9 ? 200 : 600);
       SphereTree ta(scene.a, config_a);
       SphereTree tb(scene.b, config_b);
       std::vector<SphereContact> portable;
