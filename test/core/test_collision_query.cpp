@@ -45,11 +45,14 @@ std::set<PointPair> coveredPairs(const SphereTree& a, const SphereTree& b,
 }
 
 /// Two deformed objects overlapping over part of their volume, from a seed. An object of
-/// 250 or 200 points has few enough leaves that the query tests all its buckets at once.
+/// 250 or 200 points has few enough leaves that the query tests all its buckets at once; its
+/// points lie about 6 cm apart, so its scenes take the contact distance kSparseContact.
 struct TwoBodies {
   ShapeMatchingBody a;
   ShapeMatchingBody b;
 };
+
+constexpr double kSparseContact = 0.06;
 
 TwoBodies randomScene(std::uint64_t seed, std::size_t points_a = 700, std::size_t points_b = 600) {
   std::mt19937_64 engine(seed);
@@ -81,11 +84,11 @@ TwoBodies randomScene(std::uint64_t seed, std::size_t points_a = 700, std::size_
 class NoMissedContactTest : public ::testing::TestWithParam<SphereUpdate> {};
 
 TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
-  const double contact_distance = 0.02;
   // Seeds 12 to 17: both objects small; 18 to 20: a small, b not.
   for (std::uint64_t seed = 0; seed < 21; ++seed) {
     const bool small_a = seed >= 12;
     const bool small_b = seed >= 12 && seed < 18;
+    const double contact_distance = small_a ? kSparseContact : 0.02;
     TwoBodies scene = randomScene(seed, small_a ? 250 : 700, small_b ? 200 : 600);
     SphereTree ta(scene.a, {2, 6});
     SphereTree tb(scene.b, small_b ? SphereTreeConfig{2, 5} : SphereTreeConfig{3, 4});
@@ -144,11 +147,11 @@ INSTANTIATE_TEST_SUITE_P(Methods, NoMissedContactTest,
 // contacts as the portable ones, bit for bit, for leaves of up to eight points and larger.
 TEST(WideVectors, FindTheSameContactsBitForBit) {
   if (!HierarchyQuery::wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
-  const double contact_distance = 0.02;
   for (const auto& [config_a, config_b] :
        {std::pair<SphereTreeConfig, SphereTreeConfig>{{2, 8}, {2, 5}}, {{2, 20}, {3, 13}}}) {
     for (std::uint64_t seed = 0; seed < 11; ++seed) {
       TwoBodies scene = randomScene(seed, seed >= 6 ? 250 : 700, seed >= 6 && seed < 9 ? 200 : 600);
+      const double contact_distance = seed >= 6 ? kSparseContact : 0.02;
       SphereTree ta(scene.a, config_a);
       SphereTree tb(scene.b, config_b);
       std::vector<SphereContact> portable;
