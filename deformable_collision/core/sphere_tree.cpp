@@ -51,7 +51,7 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
   build(config);
   orderLeaves();
   states_.resize(nodes_.size());
-  leaves_stamps_.assign(nodes_.size(), 0);
+  leaves_current_stamps_.assign(nodes_.size(), 0);
   std::size_t most_children = 0;
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     const SphereNode& node = nodes_[i];
@@ -241,7 +241,7 @@ void SphereTree::beginCycle(SphereUpdate method) {
   // still held: they are cleared first, or an old sphere would pass for a current one.
   if (++cycle_ == 0) {
     for (NodeState& state : states_) state.stamp = 0;
-    std::fill(leaves_stamps_.begin(), leaves_stamps_.end(), 0);
+    std::fill(leaves_current_stamps_.begin(), leaves_current_stamps_.end(), 0);
     std::fill(leaf_stamps_.begin(), leaf_stamps_.end(), 0);
     for (ClusterNorms& norms : cluster_norms_) norms.stamp = 0;
     cycle_ = 1;
@@ -302,7 +302,7 @@ const NodeState& SphereTree::updateWithLeaves(std::uint32_t index, std::uint32_t
       current(leaf_nodes_[k]);
     }
   }
-  leaves_stamps_[index] = cycle_;
+  leaves_current_stamps_[index] = cycle_;
   return states_[index];
 }
 

@@ -119,8 +119,8 @@ class SphereTree {
   /// by one, each point would be read for the node and again for its leaf.
   const NodeState& current(std::uint32_t node, std::uint32_t leaf_limit) {
     const NodeState& state = states_[node];
-    if (state.stamp == cycle_ &&
-        (state.leaf_count > leaf_limit || state.isLeaf() || leaves_stamps_[node] == cycle_)) {
+    if (state.stamp == cycle_ && (state.leaf_count > leaf_limit || state.isLeaf() ||
+                                  leaves_current_stamps_[node] == cycle_)) {
       return state;
     }
     return updateWithLeaves(node, leaf_limit);
@@ -185,8 +185,9 @@ class SphereTree {
   SphereUpdate method_ = SphereUpdate::kDeformation;
   std::uint32_t cycle_ = 1;
   std::vector<NodeState> states_;
-  /// Per node, the cycle in which all its leaves were last made current with it.
-  std::vector<std::uint32_t> leaves_stamps_;
+  /// Per node, the cycle in which its leaves were all last made current with it (as opposed
+  /// to leaf_stamps_, one per leaf).
+  std::vector<std::uint32_t> leaves_current_stamps_;
   std::vector<ClusterNorms> cluster_norms_;
   /// Visited leaves' positions in slot order, copied where a leaf's sphere is computed: the
   /// leaf-pair tests read each coordinate of a leaf contiguously, several points per
