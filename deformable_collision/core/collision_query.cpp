@@ -396,15 +396,6 @@ double overlap(const Sphere& a, const Sphere& b, double contact_distance_m) {
 
 }  // namespace
 
-bool HierarchyQuery::wideVectorsAvailable() {
-#if defined(__GNUC__) && defined(__x86_64__)
-  static const bool available = __builtin_cpu_supports("avx512f");
-  return available;
-#else
-  return false;
-#endif
-}
-
 HierarchyQuery::HierarchyQuery(bool use_wide_vectors)
     : wide_vectors_(use_wide_vectors && wideVectorsAvailable()) {}
 

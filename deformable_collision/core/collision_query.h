@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "deformable_collision/core/sphere_tree.h"
+#include "deformable_collision/core/wide_vectors.h"
 
 namespace deformable_collision {
 
@@ -46,11 +47,8 @@ struct QueryCounters {
 /// Holds its traversal stack so that repeated queries allocate nothing.
 class HierarchyQuery {
  public:
-  /// Whether this CPU has the wide vectors (AVX-512) that test eight leaves or points at
-  /// once. Both ways find the same contacts, bit for bit.
-  static bool wideVectorsAvailable();
-
-  /// Uses the wide vectors if asked and available.
+  /// Uses the wide vectors if asked and available: they test eight leaves or points at
+  /// once and find the same contacts, bit for bit.
   explicit HierarchyQuery(bool use_wide_vectors = wideVectorsAvailable());
 
   /// Appends to `contacts` the node pairs of trees `a` and `b` at `level` (0: the roots;

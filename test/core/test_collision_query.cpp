@@ -146,7 +146,7 @@ INSTANTIATE_TEST_SUITE_P(Methods, NoMissedContactTest,
 // The wide-vector leaf tests (eight leaves or points per instruction) find the same
 // contacts as the portable ones, bit for bit, for leaves of up to eight points and larger.
 TEST(WideVectors, FindTheSameContactsBitForBit) {
-  if (!HierarchyQuery::wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
+  if (!wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
   for (const auto& [config_a, config_b] :
        {std::pair<SphereTreeConfig, SphereTreeConfig>{{2, 8}, {2, 5}}, {{2, 20}, {3, 13}}}) {
     for (std::uint64_t seed = 0; seed < 11; ++seed) {
