@@ -6,6 +6,12 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
+#include <utility>
+
+#if defined(__GNUC__) && defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "deformable_collision/core/clustering.h"
 #include "deformable_collision/core/linear_algebra.h"
@@ -209,6 +215,107 @@ struct GoalKernel {
     goalFromFeatures(f, out);
   }
 };
+
+/// Squared distance from a point to its goal under `kernel`, summed as the wide kernels sum it.
+template <int K>
+double squaredGoalDistance(const GoalKernel<K>& kernel, const Eigen::Vector3d& rest_offset,
+                           const Eigen::Vector3d& x) {
+  double goal[3];
+  kernel.goal(rest_offset, goal);
+  const double e[3] = {goal[0] - x.x(), goal[1] - x.y(), goal[2] - x.z()};
+  return e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+}
+
+// The gathers below take a point's index times 3 as a 32-bit offset in doubles.
+constexpr std::size_t kMostWidePoints = std::size_t{1} << 29;
+static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "points are packed triples");
+
+#if defined(__GNUC__) && defined(__x86_64__)
+// GCC 12's AVX-512 intrinsics pass a deliberately undefined operand that its own
+// uninitialised-use warnings then report (GCC bug 105593).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#if !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
+/// Eight consecutive slots of a cluster, from `slot` on: the offsets of their points (as
+/// doubles into the positions) and their goals, each computed as GoalKernel::goal does.
+template <int K>
+struct WideGoals {
+  __m256i point_offsets;
+  __m512d goal[3];
+
+  __attribute__((target("avx512f"))) WideGoals(const GoalKernel<K>& kernel,
+                                                const Cluster& cluster, std::size_t slot) {
+    const __m256i points =
+        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(cluster.points.data() + slot));
+    point_offsets = _mm256_add_epi32(points, _mm256_add_epi32(points, points));
+    const double* rest = cluster.rest_offsets[slot].data();
+    const __m256i triples = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
+    __m512d f[K];
+    for (int c = 0; c < 3; ++c) f[c] = _mm512_i32gather_pd(triples, rest + c, 8);
+    if constexpr (K == 9) {
+      f[3] = _mm512_mul_pd(f[0], f[0]);
+      f[4] = _mm512_mul_pd(f[1], f[1]);
+      f[5] = _mm512_mul_pd(f[2], f[2]);
+      f[6] = _mm512_mul_pd(f[0], f[1]);
+      f[7] = _mm512_mul_pd(f[1], f[2]);
+      f[8] = _mm512_mul_pd(f[2], f[0]);
+    }
+    for (int r = 0; r < 3; ++r) {
+      __m512d g = _mm512_set1_pd(kernel.translation[r]);
+      for (int c = 0; c < K; ++c) {
+        g = _mm512_add_pd(g, _mm512_mul_pd(_mm512_set1_pd(kernel.transform[r][c]), f[c]));
+      }
+      goal[r] = g;
+    }
+  }
+};
+
+/// Adds the goals of the cluster's shared slots to `goal_sums`, eight at a time; returns
+/// the first slot left for the portable code.
+template <int K>
+__attribute__((target("avx512f"))) std::size_t addSharedGoalsAvx512(const GoalKernel<K>& kernel,
+                                                                    const Cluster& cluster,
+                                                                    Eigen::Vector3d* goal_sums) {
+  double* sums = goal_sums->data();
+  std::size_t slot = cluster.exclusive_count;
+  // A cluster holds a point once, so the eight slots scatter to eight different sums.
+  for (; slot + 8 <= cluster.points.size(); slot += 8) {
+    const WideGoals<K> wide(kernel, cluster, slot);
+    for (int r = 0; r < 3; ++r) {
+      const __m512d sum = _mm512_i32gather_pd(wide.point_offsets, sums + r, 8);
+      _mm512_i32scatter_pd(sums + r, wide.point_offsets, _mm512_add_pd(sum, wide.goal[r]), 8);
+    }
+  }
+  return slot;
+}
+
+/// The largest squaredGoalDistance over the cluster's slots, eight at a time, with the
+/// first slot left for the portable code.
+template <int K>
+__attribute__((target("avx512f"))) std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512(
+    const GoalKernel<K>& kernel, const Cluster& cluster, const Eigen::Vector3d* positions) {
+  const double* coordinates = positions->data();
+  __m512d largest = _mm512_setzero_pd();
+  std::size_t slot = 0;
+  for (; slot + 8 <= cluster.points.size(); slot += 8) {
+    const WideGoals<K> wide(kernel, cluster, slot);
+    __m512d squared = _mm512_setzero_pd();
+    for (int r = 0; r < 3; ++r) {
+      const __m512d x = _mm512_i32gather_pd(wide.point_offsets, coordinates + r, 8);
+      const __m512d e = _mm512_sub_pd(wide.goal[r], x);
+      squared = r == 0 ? _mm512_mul_pd(e, e) : _mm512_add_pd(squared, _mm512_mul_pd(e, e));
+    }
+    // As std::max(largest, squared) in the portable code: a NaN distance is passed over.
+    largest = _mm512_max_pd(squared, largest);
+  }
+  return {_mm512_reduce_max_pd(largest), slot};
+}
+
+#pragma GCC diagnostic pop
+#endif
 
 /// @throw std::invalid_argument unless `values` has one finite vector per point.
 void requireOnePerPoint(const std::vector<Eigen::Vector3d>& values, std::size_t points,
@@ -436,9 +543,12 @@ const char* toString(DeformationMode mode) {
 }
 
 ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
-                                     const ShapeMatchingConfig& config)
+                                     const ShapeMatchingConfig& config,
+                                     bool use_wide_vectors)
     : config_(config) {
   validate(rest_points, config);
+  wide_vectors_ =
+      use_wide_vectors && wideVectorsAvailable() && rest_points.size() <= kMostWidePoints;
   const std::size_t n = rest_points.size();
   point_mass_kg_ = config.mass_kg / static_cast<double>(n);
   rest_positions_ = std::move(rest_points);
@@ -738,7 +848,11 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
         }
       }
     }
-    for (std::size_t j = cluster.exclusive_count; j < cluster.points.size(); ++j) {
+    std::size_t j = cluster.exclusive_count;
+#if defined(__GNUC__) && defined(__x86_64__)
+    if (wide_vectors_) j = addSharedGoalsAvx512<K>(kernel, cluster, goal_sums_.data());
+#endif
+    for (; j < cluster.points.size(); ++j) {
       const std::uint32_t i = cluster.points[j];
       kernel.goal(cluster.rest_offsets[j], goal);
       goal_sums_[i] += Eigen::Vector3d(goal[0], goal[1], goal[2]);
@@ -830,16 +944,21 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
 template <DeformationMode Mode>
 void ShapeMatchingBody::measureFitResiduals() {
   constexpr int K = kFeatureCount<Mode>;
-  double goal[3];
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     const GoalKernel<K> kernel(deformations_[k]);
     double deviation_squared = 0.0;
-    for (std::size_t j = 0; j < cluster.points.size(); ++j) {
-      kernel.goal(cluster.rest_offsets[j], goal);
-      const Eigen::Vector3d& x = positions_[cluster.points[j]];
-      const Eigen::Vector3d e(goal[0] - x.x(), goal[1] - x.y(), goal[2] - x.z());
-      deviation_squared = std::max(deviation_squared, e.squaredNorm());
+    std::size_t j = 0;
+#if defined(__GNUC__) && defined(__x86_64__)
+    if (wide_vectors_) {
+      std::tie(deviation_squared, j) =
+          largestSquaredGoalDistanceAvx512<K>(kernel, cluster, positions_.data());
+    }
+#endif
+    for (; j < cluster.points.size(); ++j) {
+      deviation_squared = std::max(
+          deviation_squared,
+          squaredGoalDistance<K>(kernel, cluster.rest_offsets[j], positions_[cluster.points[j]]));
     }
     deformations_[k].goal_deviation_bound_m = std::sqrt(deviation_squared);
   }

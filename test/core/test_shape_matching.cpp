@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <random>
+#include <string>
 
 #include "deformable_collision/core/shapes.h"
 
@@ -305,6 +307,82 @@ TEST(GoalDeviationBound, ExcludesTheObjectsOwnMotion) {
   // The box falls at about 10 m/s, i.e. 0.1 m per step, without deforming.
   EXPECT_LT(body.deformation(0).goal_deviation_bound_m, 1e-9);
 }
+
+struct WideVectorCase {
+  const char* name;
+  DeformationMode mode;
+  int clusters;
+  std::size_t points;  ///< Not a multiple of 8: the portable code finishes each cluster.
+};
+
+void PrintTo(const WideVectorCase& c, std::ostream* os) { *os << c.name; }
+
+class WideVectorTest : public ::testing::TestWithParam<WideVectorCase> {};
+
+void expectSameBits(const ShapeMatchingBody& wide, const ShapeMatchingBody& portable,
+                    const std::string& when) {
+  ASSERT_EQ(wide.positions(), portable.positions()) << when;
+  ASSERT_EQ(wide.velocities(), portable.velocities()) << when;
+  for (std::size_t k = 0; k < wide.clusterCount(); ++k) {
+    EXPECT_EQ(wide.deformation(k).transform, portable.deformation(k).transform) << when;
+    EXPECT_EQ(wide.deformation(k).translation, portable.deformation(k).translation) << when;
+    EXPECT_EQ(wide.deformation(k).goal_deviation_bound_m,
+              portable.deformation(k).goal_deviation_bound_m)
+        << when << ", cluster " << k;
+  }
+}
+
+// The wide-vector goals of shared points and fit residuals give the same bits as the
+// portable ones, through simulation, tracking with unobserved points, and responses.
+TEST_P(WideVectorTest, GiveTheSameBitsAsThePortableCode) {
+  if (!wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
+  const WideVectorCase& c = GetParam();
+  ShapeMatchingConfig config = configFor(c.mode, c.clusters);
+  config.stiffness = 0.7;
+  const Points rest = sampleEllipsoid(c.points, {0.3, 0.2, 0.15}, 21);
+  ShapeMatchingBody wide(rest, config, true);
+  ShapeMatchingBody portable(rest, config, false);
+  ASSERT_TRUE(wide.usesWideVectors());
+  ASSERT_FALSE(portable.usesWideVectors());
+  const Points bent = mapped(rest, [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return kRotation * Eigen::Vector3d(p.x() + 2.0 * p.y() * p.y(), 1.3 * p.y(), 0.8 * p.z());
+  });
+  wide.setPositions(bent);
+  portable.setPositions(bent);
+  expectSameBits(wide, portable, "placed");
+  ASSERT_GT(wide.deformation(0).goal_deviation_bound_m, 0.0) << "a residual to compare";
+  for (int s = 0; s < 20; ++s) {
+    wide.step(0.01, Eigen::Vector3d(0.0, 0.0, -9.81));
+    portable.step(0.01, Eigen::Vector3d(0.0, 0.0, -9.81));
+    expectSameBits(wide, portable, "step " + std::to_string(s));
+  }
+  std::vector<PointDisplacement> kicks;
+  for (std::uint32_t i = 0; i < rest.size(); i += 5) {
+    kicks.push_back({i, Eigen::Vector3d(0.0, 0.0, 1e-3), Eigen::Vector3d(0.0, 0.1, 0.0)});
+  }
+  wide.displacePoints(kicks);
+  portable.displacePoints(kicks);
+  wide.step(0.01, Eigen::Vector3d::Zero());
+  portable.step(0.01, Eigen::Vector3d::Zero());
+  expectSameBits(wide, portable, "after a response");
+  Points observed = bent;
+  for (std::size_t i = 0; i < observed.size(); i += 9) {
+    observed[i].y() = std::numeric_limits<double>::quiet_NaN();
+  }
+  wide.track(observed);
+  portable.track(observed);
+  expectSameBits(wide, portable, "tracked");
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Modes, WideVectorTest,
+    ::testing::Values(WideVectorCase{"rigid_one_cluster", DeformationMode::kRigid, 1, 203},
+                      WideVectorCase{"linear_shared_seams", DeformationMode::kLinear, 4, 701},
+                      WideVectorCase{"quadratic_shared_seams", DeformationMode::kQuadratic, 3, 517},
+                      WideVectorCase{"fewer_points_than_a_vector", DeformationMode::kQuadratic, 2, 13}),
+    [](const ::testing::TestParamInfo<WideVectorCase>& info) {
+      return std::string(info.param.name);
+    });
 
 // ---------------------------------------------------------------------------------------
 // Collision responses move points; the fit follows and the bound stays sound.
