@@ -61,42 +61,463 @@ struct Moments {
   double second_moment[3][3] = {};
 };
 
-/// Sums slots [begin, end) of `cluster`; `weights` is null for exclusive slots, whose
-/// weight the caller applies. Momentum feeds the centre-of-mass prediction; spin terms feed
-/// the damping. The sums live in a local so that they stay in registers: through a
-/// reference they could alias the positions and would be stored on every point.
-template <int K, bool WithMomentum, bool WithSpin>
-Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end,
-                      const double* weights, const std::vector<Eigen::Vector3d>& positions,
-                      const std::vector<Eigen::Vector3d>& velocities,
-                      const Eigen::Vector3d& reference) {
-  Moments<K> m;
-  for (std::size_t j = begin; j < end; ++j) {
-    const std::uint32_t i = cluster.points[j];
-    const double w = weights != nullptr ? weights[j - begin] : 1.0;
-    const double p[3] = {positions[i].x() - reference.x(), positions[i].y() - reference.y(),
-                         positions[i].z() - reference.z()};
-    double f[K];
-    featureArray<K>(cluster.rest_offsets[j], f);
+/// The rows and columns of the second moment's upper triangle; the moment is symmetric.
+constexpr int kUpperRow[6] = {0, 0, 0, 1, 1, 2};
+constexpr int kUpperColumn[6] = {0, 1, 2, 1, 2, 2};
+constexpr int kParts = 8;
+
+/// The sum of eight parts, always added up in this order.
+inline double sumOfParts(const double (&parts)[kParts]) {
+  return ((parts[0] + parts[1]) + (parts[2] + parts[3])) +
+         ((parts[4] + parts[5]) + (parts[6] + parts[7]));
+}
+
+/// Moments of a range of a cluster's slots in eight interleaved parts: the range's n-th
+/// slot goes to part n % 8. The wide kernels sum eight slots per instruction this way and
+/// the portable code sums the same way, lane by lane, so that both give the same bits.
+template <int K>
+struct PartialMoments {
+  double offset[3][kParts] = {};
+  double offset_features[3][K][kParts] = {};
+  double momentum[3][kParts] = {};
+  double angular_momentum[3][kParts] = {};
+  double second_moment[6][kParts] = {};  ///< The upper triangle, see kUpperRow.
+
+  /// Adds the first `lanes` of a block of slots, lane n to part n: weights w, offsets p from
+  /// the reference, velocities v and features f. Momentum feeds the centre-of-mass
+  /// prediction; spin terms feed the damping. Unweighted, w is 1 and multiplies nothing.
+  template <bool Weighted, bool WithMomentum, bool WithSpin>
+  void addLanes(int lanes, const double (&w)[kParts], const double (&p)[3][kParts],
+                const double (&v)[3][kParts], const double (&f)[K][kParts]) {
+    double wp[3][kParts];
     for (int r = 0; r < 3; ++r) {
-      const double wp = w * p[r];
-      m.offset[r] += wp;
-      for (int c = 0; c < K; ++c) m.offset_features[r][c] += wp * f[c];
+      for (int n = 0; n < lanes; ++n) {
+        wp[r][n] = Weighted ? w[n] * p[r][n] : p[r][n];
+        offset[r][n] += wp[r][n];
+      }
+      for (int c = 0; c < K; ++c) {
+        for (int n = 0; n < lanes; ++n) offset_features[r][c][n] += wp[r][n] * f[c][n];
+      }
     }
     if constexpr (WithMomentum) {
-      const Eigen::Vector3d& v = velocities[i];
-      for (int r = 0; r < 3; ++r) m.momentum[r] += w * v[r];
+      for (int r = 0; r < 3; ++r) {
+        for (int n = 0; n < lanes; ++n) momentum[r][n] += Weighted ? w[n] * v[r][n] : v[r][n];
+      }
       if constexpr (WithSpin) {
-        m.angular_momentum[0] += w * (p[1] * v.z() - p[2] * v.y());
-        m.angular_momentum[1] += w * (p[2] * v.x() - p[0] * v.z());
-        m.angular_momentum[2] += w * (p[0] * v.y() - p[1] * v.x());
         for (int r = 0; r < 3; ++r) {
-          for (int c = 0; c < 3; ++c) m.second_moment[r][c] += w * p[r] * p[c];
+          const int a = (r + 1) % 3;
+          const int b = (r + 2) % 3;
+          for (int n = 0; n < lanes; ++n) {
+            const double spin = p[a][n] * v[b][n] - p[b][n] * v[a][n];
+            angular_momentum[r][n] += Weighted ? w[n] * spin : spin;
+          }
+        }
+        for (int e = 0; e < 6; ++e) {
+          for (int n = 0; n < lanes; ++n) {
+            second_moment[e][n] += wp[kUpperRow[e]][n] * p[kUpperColumn[e]][n];
+          }
         }
       }
     }
   }
-  return m;
+
+  Moments<K> total() const {
+    Moments<K> m;
+    for (int r = 0; r < 3; ++r) {
+      m.offset[r] = sumOfParts(offset[r]);
+      m.momentum[r] = sumOfParts(momentum[r]);
+      m.angular_momentum[r] = sumOfParts(angular_momentum[r]);
+      for (int c = 0; c < K; ++c) m.offset_features[r][c] = sumOfParts(offset_features[r][c]);
+    }
+    for (int e = 0; e < 6; ++e) {
+      const double sum = sumOfParts(second_moment[e]);
+      m.second_moment[kUpperRow[e]][kUpperColumn[e]] = sum;
+      m.second_moment[kUpperColumn[e]][kUpperRow[e]] = sum;
+    }
+    return m;
+  }
+};
+
+/// g = T q~ + t on plain arrays, for the per-point kernels.
+template <int K>
+struct GoalKernel {
+  double transform[3][K];
+  double translation[3];
+  GoalKernel(const Eigen::Matrix<double, 3, 9>& transform_in, const Eigen::Vector3d& translation_in) {
+    for (int r = 0; r < 3; ++r) {
+      translation[r] = translation_in[r];
+      for (int c = 0; c < K; ++c) transform[r][c] = transform_in(r, c);
+    }
+  }
+  explicit GoalKernel(const ClusterDeformation& deformation)
+      : GoalKernel(deformation.transform, deformation.translation) {}
+  void goalFromFeatures(const double (&f)[K], double (&out)[3]) const {
+    for (int r = 0; r < 3; ++r) {
+      double g = translation[r];
+      for (int c = 0; c < K; ++c) g += transform[r][c] * f[c];
+      out[r] = g;
+    }
+  }
+  void goal(const Eigen::Vector3d& rest_offset, double (&out)[3]) const {
+    double f[K];
+    featureArray<K>(rest_offset, f);
+    goalFromFeatures(f, out);
+  }
+};
+
+/// Squared distance from a point to its goal under `kernel`. Eigen sums the squares as the
+/// wide kernels do, (x^2 + y^2) + z^2, and lets GCC compute two rows of the goal at once.
+template <int K>
+double squaredGoalDistance(const GoalKernel<K>& kernel, const Eigen::Vector3d& rest_offset,
+                           const Eigen::Vector3d& x) {
+  double goal[3];
+  kernel.goal(rest_offset, goal);
+  return (Eigen::Vector3d(goal[0], goal[1], goal[2]) - x).squaredNorm();
+}
+
+/// One step's move of a point towards its goal g: v += damping (u - v), with u the
+/// object's rigid velocity at the point, then v += pull (g - x) + kick and x += dt v.
+struct StepMotion {
+  double dt_s = 0.0;
+  double pull = 0.0;
+  double damping = 0.0;
+  double kick[3] = {};
+  double object_center[3] = {};
+  double object_velocity[3] = {};
+  double object_spin[3] = {};
+
+  template <bool Damped>
+  void move(const double (&goal)[3], double* x, double* v) const {
+    double target[3] = {};
+    if constexpr (Damped) {
+      const double d[3] = {x[0] - object_center[0], x[1] - object_center[1],
+                           x[2] - object_center[2]};
+      const double* s = object_spin;
+      target[0] = object_velocity[0] + (s[1] * d[2] - s[2] * d[1]);
+      target[1] = object_velocity[1] + (s[2] * d[0] - s[0] * d[2]);
+      target[2] = object_velocity[2] + (s[0] * d[1] - s[1] * d[0]);
+    }
+    for (int r = 0; r < 3; ++r) {
+      if constexpr (Damped) v[r] += damping * (target[r] - v[r]);
+      v[r] += pull * (goal[r] - x[r]) + kick[r];
+      x[r] += dt_s * v[r];
+    }
+  }
+};
+
+// The wide kernels take the goal kernel, the motion and the reference by value: a local
+// whose address went out of line could alias the points the portable loops then write, and
+// those loops would read it again after every point.
+// The gathers below take a point's index times 3 as a 32-bit offset in doubles.
+constexpr std::size_t kMostWidePoints = std::size_t{1} << 29;
+static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "points are packed triples");
+
+#if defined(__GNUC__) && defined(__x86_64__)
+// GCC 12's AVX-512 intrinsics pass a deliberately undefined operand that its own
+// uninitialised-use warnings then report (GCC bug 105593).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#if !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
+/// a x b, component `row`, as the portable code computes it: a[i] b[j] - a[j] b[i].
+__attribute__((target("avx512f"))) inline __m512d crossComponent(int row, const __m512d (&a)[3],
+                                                                 const __m512d (&b)[3]) {
+  const int i = (row + 1) % 3;
+  const int j = (row + 2) % 3;
+  return _mm512_sub_pd(_mm512_mul_pd(a[i], b[j]), _mm512_mul_pd(a[j], b[i]));
+}
+
+/// Offsets, in doubles, of the points of the cluster's eight slots from `slot` on.
+__attribute__((target("avx512f"))) inline __m256i pointOffsets(const Cluster& cluster,
+                                                               std::size_t slot) {
+  const __m256i points =
+      _mm256_loadu_si256(reinterpret_cast<const __m256i*>(cluster.points.data() + slot));
+  return _mm256_add_epi32(points, _mm256_add_epi32(points, points));
+}
+
+/// The features of the cluster's eight slots from `slot` on, each as featureArray gives it.
+template <int K>
+__attribute__((target("avx512f"))) inline void wideFeatures(const Cluster& cluster,
+                                                            std::size_t slot, __m512d (&f)[K]) {
+  // Eight packed triples, split into their x, y and z.
+  const double* rest = cluster.rest_offsets[slot].data();
+  const __m512d a = _mm512_loadu_pd(rest);
+  const __m512d b = _mm512_loadu_pd(rest + 8);
+  const __m512d c = _mm512_loadu_pd(rest + 16);
+  // Coordinate r of slot n sits at 3 n + r: first taken from a and b, then the rest from c.
+  const __m512i from_a_and_b[3] = {_mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0),
+                                   _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0),
+                                   _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0)};
+  const __m512i from_c[3] = {_mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13),
+                             _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14),
+                             _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15)};
+  for (int r = 0; r < 3; ++r) {
+    f[r] = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, from_a_and_b[r], b), from_c[r], c);
+  }
+  if constexpr (K == 9) {
+    f[3] = _mm512_mul_pd(f[0], f[0]);
+    f[4] = _mm512_mul_pd(f[1], f[1]);
+    f[5] = _mm512_mul_pd(f[2], f[2]);
+    f[6] = _mm512_mul_pd(f[0], f[1]);
+    f[7] = _mm512_mul_pd(f[1], f[2]);
+    f[8] = _mm512_mul_pd(f[2], f[0]);
+  }
+}
+
+/// Eight consecutive slots of a cluster, from `slot` on: the offsets of their points, their
+/// features and their goals, each computed as GoalKernel::goal does.
+template <int K>
+struct WideGoals {
+  __m256i point_offsets;
+  __m512d features[K];
+  __m512d goal[3];
+
+  __attribute__((target("avx512f"))) WideGoals(const GoalKernel<K>& kernel,
+                                                const Cluster& cluster, std::size_t slot) {
+    point_offsets = pointOffsets(cluster, slot);
+    wideFeatures<K>(cluster, slot, features);
+    for (int r = 0; r < 3; ++r) {
+      __m512d g = _mm512_set1_pd(kernel.translation[r]);
+      for (int c = 0; c < K; ++c) {
+        g = _mm512_add_pd(g, _mm512_mul_pd(_mm512_set1_pd(kernel.transform[r][c]), features[c]));
+      }
+      goal[r] = g;
+    }
+  }
+};
+
+/// PartialMoments with its eight parts in the lanes of wide vectors.
+template <int K>
+struct WideMoments {
+  __m512d offset[3];
+  __m512d offset_features[3][K];
+  __m512d momentum[3];
+  __m512d angular_momentum[3];
+  __m512d second_moment[6];
+
+  __attribute__((target("avx512f"))) WideMoments() {
+    for (int r = 0; r < 3; ++r) {
+      offset[r] = momentum[r] = angular_momentum[r] = _mm512_setzero_pd();
+      for (int c = 0; c < K; ++c) offset_features[r][c] = _mm512_setzero_pd();
+    }
+    for (int e = 0; e < 6; ++e) second_moment[e] = _mm512_setzero_pd();
+  }
+
+  /// PartialMoments::addLanes for eight slots, one per part.
+  template <bool Weighted, bool WithMomentum, bool WithSpin>
+  __attribute__((target("avx512f"))) void add(__m512d w, const __m512d (&p)[3],
+                                               const __m512d (&v)[3], const __m512d (&f)[K]) {
+    __m512d wp[3];
+    for (int r = 0; r < 3; ++r) {
+      wp[r] = Weighted ? _mm512_mul_pd(w, p[r]) : p[r];
+      offset[r] = _mm512_add_pd(offset[r], wp[r]);
+      for (int c = 0; c < K; ++c) {
+        offset_features[r][c] = _mm512_add_pd(offset_features[r][c], _mm512_mul_pd(wp[r], f[c]));
+      }
+    }
+    if constexpr (WithMomentum) {
+      for (int r = 0; r < 3; ++r) {
+        momentum[r] = _mm512_add_pd(momentum[r], Weighted ? _mm512_mul_pd(w, v[r]) : v[r]);
+      }
+      if constexpr (WithSpin) {
+        for (int r = 0; r < 3; ++r) {
+          const __m512d spin = crossComponent(r, p, v);
+          angular_momentum[r] =
+              _mm512_add_pd(angular_momentum[r], Weighted ? _mm512_mul_pd(w, spin) : spin);
+        }
+        for (int e = 0; e < 6; ++e) {
+          second_moment[e] = _mm512_add_pd(second_moment[e],
+                                           _mm512_mul_pd(wp[kUpperRow[e]], p[kUpperColumn[e]]));
+        }
+      }
+    }
+  }
+
+  /// Writes the parts to `sums`, which hold nothing yet.
+  __attribute__((target("avx512f"))) void storeTo(PartialMoments<K>& sums) const {
+    for (int r = 0; r < 3; ++r) {
+      _mm512_storeu_pd(sums.offset[r], offset[r]);
+      _mm512_storeu_pd(sums.momentum[r], momentum[r]);
+      _mm512_storeu_pd(sums.angular_momentum[r], angular_momentum[r]);
+      for (int c = 0; c < K; ++c) {
+        _mm512_storeu_pd(sums.offset_features[r][c], offset_features[r][c]);
+      }
+    }
+    for (int e = 0; e < 6; ++e) _mm512_storeu_pd(sums.second_moment[e], second_moment[e]);
+  }
+};
+
+/// The first slots of [begin, end), eight at a time, into `sums` (which hold nothing yet);
+/// returns the first slot left for the portable code.
+template <int K, bool WithMomentum, bool WithSpin>
+__attribute__((target("avx512f"))) std::size_t accumulateAvx512(
+    const Cluster& cluster, std::size_t begin, std::size_t end, const double* weights,
+    const Eigen::Vector3d* positions, const Eigen::Vector3d* velocities,
+    const Eigen::Vector3d reference, PartialMoments<K>& sums) {
+  WideMoments<K> moments;
+  std::size_t slot = begin;
+  for (; slot + 8 <= end; slot += 8) {
+    const __m256i offsets = pointOffsets(cluster, slot);
+    __m512d f[K];
+    wideFeatures<K>(cluster, slot, f);
+    __m512d p[3];
+    __m512d v[3];
+    for (int r = 0; r < 3; ++r) {
+      const __m512d x = _mm512_i32gather_pd(offsets, positions->data() + r, 8);
+      p[r] = _mm512_sub_pd(x, _mm512_set1_pd(reference[r]));
+      v[r] = WithMomentum ? _mm512_i32gather_pd(offsets, velocities->data() + r, 8)
+                          : _mm512_setzero_pd();
+    }
+    if (weights != nullptr) {
+      moments.template add<true, WithMomentum, WithSpin>(_mm512_loadu_pd(weights + (slot - begin)),
+                                                         p, v, f);
+    } else {
+      moments.template add<false, WithMomentum, WithSpin>(_mm512_setzero_pd(), p, v, f);
+    }
+  }
+  moments.storeTo(sums);
+  return slot;
+}
+
+/// The cluster's first exclusive slots, eight at a time: each point makes the step's move
+/// (StepMotion::move) and is added to `sums` (which hold nothing yet). Returns the first
+/// slot left for the portable code.
+template <int K, bool Damped>
+__attribute__((target("avx512f"))) std::size_t moveExclusiveAvx512(
+    const GoalKernel<K> kernel, const Cluster& cluster, const StepMotion motion,
+    Eigen::Vector3d* positions, Eigen::Vector3d* velocities, const Eigen::Vector3d reference,
+    PartialMoments<K>& sums) {
+  double* xs = positions->data();
+  double* vs = velocities->data();
+  WideMoments<K> moments;
+  std::size_t slot = 0;
+  // A cluster holds a point once, so the eight slots scatter to eight different points.
+  for (; slot + 8 <= cluster.exclusive_count; slot += 8) {
+    const WideGoals<K> wide(kernel, cluster, slot);
+    __m512d x[3];
+    __m512d v[3];
+    for (int r = 0; r < 3; ++r) {
+      x[r] = _mm512_i32gather_pd(wide.point_offsets, xs + r, 8);
+      v[r] = _mm512_i32gather_pd(wide.point_offsets, vs + r, 8);
+    }
+    __m512d target[3];
+    if constexpr (Damped) {
+      __m512d spin[3];
+      __m512d d[3];
+      for (int r = 0; r < 3; ++r) {
+        spin[r] = _mm512_set1_pd(motion.object_spin[r]);
+        d[r] = _mm512_sub_pd(x[r], _mm512_set1_pd(motion.object_center[r]));
+      }
+      for (int r = 0; r < 3; ++r) {
+        target[r] = _mm512_add_pd(_mm512_set1_pd(motion.object_velocity[r]),
+                                  crossComponent(r, spin, d));
+      }
+    }
+    __m512d p[3];
+    for (int r = 0; r < 3; ++r) {
+      if constexpr (Damped) {
+        v[r] = _mm512_add_pd(
+            v[r], _mm512_mul_pd(_mm512_set1_pd(motion.damping), _mm512_sub_pd(target[r], v[r])));
+      }
+      const __m512d pull =
+          _mm512_mul_pd(_mm512_set1_pd(motion.pull), _mm512_sub_pd(wide.goal[r], x[r]));
+      v[r] = _mm512_add_pd(v[r], _mm512_add_pd(pull, _mm512_set1_pd(motion.kick[r])));
+      x[r] = _mm512_add_pd(x[r], _mm512_mul_pd(_mm512_set1_pd(motion.dt_s), v[r]));
+      _mm512_i32scatter_pd(xs + r, wide.point_offsets, x[r], 8);
+      _mm512_i32scatter_pd(vs + r, wide.point_offsets, v[r], 8);
+      p[r] = _mm512_sub_pd(x[r], _mm512_set1_pd(reference[r]));
+    }
+    moments.template add<false, true, Damped>(_mm512_setzero_pd(), p, v, wide.features);
+  }
+  moments.storeTo(sums);
+  return slot;
+}
+
+/// Adds the goals of the cluster's shared slots to `goal_sums`, eight at a time; returns
+/// the first slot left for the portable code.
+template <int K>
+__attribute__((target("avx512f"))) std::size_t addSharedGoalsAvx512(const GoalKernel<K> kernel,
+                                                                    const Cluster& cluster,
+                                                                    Eigen::Vector3d* goal_sums) {
+  double* sums = goal_sums->data();
+  std::size_t slot = cluster.exclusive_count;
+  for (; slot + 8 <= cluster.points.size(); slot += 8) {
+    const WideGoals<K> wide(kernel, cluster, slot);
+    for (int r = 0; r < 3; ++r) {
+      const __m512d sum = _mm512_i32gather_pd(wide.point_offsets, sums + r, 8);
+      _mm512_i32scatter_pd(sums + r, wide.point_offsets, _mm512_add_pd(sum, wide.goal[r]), 8);
+    }
+  }
+  return slot;
+}
+
+/// The largest squaredGoalDistance over the cluster's slots, eight at a time, with the
+/// first slot left for the portable code.
+template <int K>
+__attribute__((target("avx512f"))) std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512(
+    const GoalKernel<K> kernel, const Cluster& cluster, const Eigen::Vector3d* positions) {
+  const double* coordinates = positions->data();
+  __m512d largest = _mm512_setzero_pd();
+  std::size_t slot = 0;
+  for (; slot + 8 <= cluster.points.size(); slot += 8) {
+    const WideGoals<K> wide(kernel, cluster, slot);
+    __m512d squared = _mm512_setzero_pd();
+    for (int r = 0; r < 3; ++r) {
+      const __m512d x = _mm512_i32gather_pd(wide.point_offsets, coordinates + r, 8);
+      const __m512d e = _mm512_sub_pd(wide.goal[r], x);
+      squared = r == 0 ? _mm512_mul_pd(e, e) : _mm512_add_pd(squared, _mm512_mul_pd(e, e));
+    }
+    // As std::max(largest, squared) in the portable code: a NaN distance is passed over.
+    largest = _mm512_max_pd(squared, largest);
+  }
+  return {_mm512_reduce_max_pd(largest), slot};
+}
+
+#pragma GCC diagnostic pop
+#endif
+
+/// Sums slots [begin, end) of `cluster`; `weights` is null for exclusive slots, whose
+/// weight the caller applies.
+template <int K, bool WithMomentum, bool WithSpin>
+Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end,
+                      const double* weights, const std::vector<Eigen::Vector3d>& positions,
+                      const std::vector<Eigen::Vector3d>& velocities,
+                      const Eigen::Vector3d& reference, [[maybe_unused]] bool wide_vectors) {
+  PartialMoments<K> sums;
+  std::size_t j = begin;
+#if defined(__GNUC__) && defined(__x86_64__)
+  if (wide_vectors) {
+    j = accumulateAvx512<K, WithMomentum, WithSpin>(cluster, begin, end, weights, positions.data(),
+                                                    velocities.data(), reference, sums);
+  }
+#endif
+  // The wide vectors took whole blocks of eight, so slot j + n goes to part n.
+  for (; j < end; j += kParts) {
+    const int lanes = static_cast<int>(std::min<std::size_t>(kParts, end - j));
+    double w[kParts];
+    double p[3][kParts];
+    double v[3][kParts];
+    double f[K][kParts];
+    for (int n = 0; n < lanes; ++n) {
+      const std::uint32_t i = cluster.points[j + n];
+      double features[K];
+      featureArray<K>(cluster.rest_offsets[j + n], features);
+      for (int c = 0; c < K; ++c) f[c][n] = features[c];
+      for (int r = 0; r < 3; ++r) {
+        p[r][n] = positions[i][r] - reference[r];
+        v[r][n] = velocities[i][r];
+      }
+      w[n] = weights != nullptr ? weights[j + n - begin] : 1.0;
+    }
+    if (weights != nullptr) {
+      sums.template addLanes<true, WithMomentum, WithSpin>(lanes, w, p, v, f);
+    } else {
+      sums.template addLanes<false, WithMomentum, WithSpin>(lanes, w, p, v, f);
+    }
+  }
+  return sums.total();
 }
 
 /// Moments of the whole cluster, in kg-weighted units.
@@ -104,12 +525,12 @@ template <int K, bool WithMomentum, bool WithSpin>
 Moments<K> clusterMoments(const Cluster& cluster, double point_mass_kg,
                           const std::vector<Eigen::Vector3d>& positions,
                           const std::vector<Eigen::Vector3d>& velocities,
-                          const Eigen::Vector3d& reference) {
+                          const Eigen::Vector3d& reference, bool wide_vectors) {
   Moments<K> exclusive = accumulate<K, WithMomentum, WithSpin>(
-      cluster, 0, cluster.exclusive_count, nullptr, positions, velocities, reference);
+      cluster, 0, cluster.exclusive_count, nullptr, positions, velocities, reference, wide_vectors);
   const Moments<K> shared = accumulate<K, WithMomentum, WithSpin>(
       cluster, cluster.exclusive_count, cluster.points.size(), cluster.shared_weights_kg.data(),
-      positions, velocities, reference);
+      positions, velocities, reference, wide_vectors);
   for (int r = 0; r < 3; ++r) {
     exclusive.offset[r] = point_mass_kg * exclusive.offset[r] + shared.offset[r];
     exclusive.momentum[r] = point_mass_kg * exclusive.momentum[r] + shared.momentum[r];
@@ -132,9 +553,9 @@ template <int K, bool WithMomentum, bool WithSpin>
 ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
                         const std::vector<Eigen::Vector3d>& positions,
                         const std::vector<Eigen::Vector3d>& velocities,
-                        const Eigen::Vector3d& reference) {
-  const Moments<K> m = clusterMoments<K, WithMomentum, WithSpin>(cluster, point_mass_kg, positions,
-                                                                 velocities, reference);
+                        const Eigen::Vector3d& reference, bool wide_vectors) {
+  const Moments<K> m = clusterMoments<K, WithMomentum, WithSpin>(
+      cluster, point_mass_kg, positions, velocities, reference, wide_vectors);
   ClusterSums sums;
   sums.reference = reference;
   for (int r = 0; r < 3; ++r) {
@@ -188,134 +609,6 @@ void setGoalTransform(const Cluster& cluster, const Eigen::Matrix<double, 3, K>&
   deformation.translation =
       deformation.center_of_mass - transform * cluster.mean_features.template head<K>();
 }
-
-/// g = T q~ + t on plain arrays, for the per-point kernels.
-template <int K>
-struct GoalKernel {
-  double transform[3][K];
-  double translation[3];
-  GoalKernel(const Eigen::Matrix<double, 3, 9>& transform_in, const Eigen::Vector3d& translation_in) {
-    for (int r = 0; r < 3; ++r) {
-      translation[r] = translation_in[r];
-      for (int c = 0; c < K; ++c) transform[r][c] = transform_in(r, c);
-    }
-  }
-  explicit GoalKernel(const ClusterDeformation& deformation)
-      : GoalKernel(deformation.transform, deformation.translation) {}
-  void goalFromFeatures(const double (&f)[K], double (&out)[3]) const {
-    for (int r = 0; r < 3; ++r) {
-      double g = translation[r];
-      for (int c = 0; c < K; ++c) g += transform[r][c] * f[c];
-      out[r] = g;
-    }
-  }
-  void goal(const Eigen::Vector3d& rest_offset, double (&out)[3]) const {
-    double f[K];
-    featureArray<K>(rest_offset, f);
-    goalFromFeatures(f, out);
-  }
-};
-
-/// Squared distance from a point to its goal under `kernel`, summed as the wide kernels sum it.
-template <int K>
-double squaredGoalDistance(const GoalKernel<K>& kernel, const Eigen::Vector3d& rest_offset,
-                           const Eigen::Vector3d& x) {
-  double goal[3];
-  kernel.goal(rest_offset, goal);
-  const double e[3] = {goal[0] - x.x(), goal[1] - x.y(), goal[2] - x.z()};
-  return e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
-}
-
-// The gathers below take a point's index times 3 as a 32-bit offset in doubles.
-constexpr std::size_t kMostWidePoints = std::size_t{1} << 29;
-static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "points are packed triples");
-
-#if defined(__GNUC__) && defined(__x86_64__)
-// GCC 12's AVX-512 intrinsics pass a deliberately undefined operand that its own
-// uninitialised-use warnings then report (GCC bug 105593).
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#if !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-
-/// Eight consecutive slots of a cluster, from `slot` on: the offsets of their points (as
-/// doubles into the positions) and their goals, each computed as GoalKernel::goal does.
-template <int K>
-struct WideGoals {
-  __m256i point_offsets;
-  __m512d goal[3];
-
-  __attribute__((target("avx512f"))) WideGoals(const GoalKernel<K>& kernel,
-                                                const Cluster& cluster, std::size_t slot) {
-    const __m256i points =
-        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(cluster.points.data() + slot));
-    point_offsets = _mm256_add_epi32(points, _mm256_add_epi32(points, points));
-    const double* rest = cluster.rest_offsets[slot].data();
-    const __m256i triples = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
-    __m512d f[K];
-    for (int c = 0; c < 3; ++c) f[c] = _mm512_i32gather_pd(triples, rest + c, 8);
-    if constexpr (K == 9) {
-      f[3] = _mm512_mul_pd(f[0], f[0]);
-      f[4] = _mm512_mul_pd(f[1], f[1]);
-      f[5] = _mm512_mul_pd(f[2], f[2]);
-      f[6] = _mm512_mul_pd(f[0], f[1]);
-      f[7] = _mm512_mul_pd(f[1], f[2]);
-      f[8] = _mm512_mul_pd(f[2], f[0]);
-    }
-    for (int r = 0; r < 3; ++r) {
-      __m512d g = _mm512_set1_pd(kernel.translation[r]);
-      for (int c = 0; c < K; ++c) {
-        g = _mm512_add_pd(g, _mm512_mul_pd(_mm512_set1_pd(kernel.transform[r][c]), f[c]));
-      }
-      goal[r] = g;
-    }
-  }
-};
-
-/// Adds the goals of the cluster's shared slots to `goal_sums`, eight at a time; returns
-/// the first slot left for the portable code.
-template <int K>
-__attribute__((target("avx512f"))) std::size_t addSharedGoalsAvx512(const GoalKernel<K>& kernel,
-                                                                    const Cluster& cluster,
-                                                                    Eigen::Vector3d* goal_sums) {
-  double* sums = goal_sums->data();
-  std::size_t slot = cluster.exclusive_count;
-  // A cluster holds a point once, so the eight slots scatter to eight different sums.
-  for (; slot + 8 <= cluster.points.size(); slot += 8) {
-    const WideGoals<K> wide(kernel, cluster, slot);
-    for (int r = 0; r < 3; ++r) {
-      const __m512d sum = _mm512_i32gather_pd(wide.point_offsets, sums + r, 8);
-      _mm512_i32scatter_pd(sums + r, wide.point_offsets, _mm512_add_pd(sum, wide.goal[r]), 8);
-    }
-  }
-  return slot;
-}
-
-/// The largest squaredGoalDistance over the cluster's slots, eight at a time, with the
-/// first slot left for the portable code.
-template <int K>
-__attribute__((target("avx512f"))) std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512(
-    const GoalKernel<K>& kernel, const Cluster& cluster, const Eigen::Vector3d* positions) {
-  const double* coordinates = positions->data();
-  __m512d largest = _mm512_setzero_pd();
-  std::size_t slot = 0;
-  for (; slot + 8 <= cluster.points.size(); slot += 8) {
-    const WideGoals<K> wide(kernel, cluster, slot);
-    __m512d squared = _mm512_setzero_pd();
-    for (int r = 0; r < 3; ++r) {
-      const __m512d x = _mm512_i32gather_pd(wide.point_offsets, coordinates + r, 8);
-      const __m512d e = _mm512_sub_pd(wide.goal[r], x);
-      squared = r == 0 ? _mm512_mul_pd(e, e) : _mm512_add_pd(squared, _mm512_mul_pd(e, e));
-    }
-    // As std::max(largest, squared) in the portable code: a NaN distance is passed over.
-    largest = _mm512_max_pd(squared, largest);
-  }
-  return {_mm512_reduce_max_pd(largest), slot};
-}
-
-#pragma GCC diagnostic pop
-#endif
 
 /// @throw std::invalid_argument unless `values` has one finite vector per point.
 void requireOnePerPoint(const std::vector<Eigen::Vector3d>& values, std::size_t points,
@@ -743,10 +1036,6 @@ void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& dis
 template <DeformationMode Mode, bool Damped>
 void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2) {
   constexpr int K = kFeatureCount<Mode>;
-  const double pull = config_.stiffness / dt_s;
-  const double damping = config_.damping;
-  const double kick[3] = {dt_s * acceleration_mps2.x(), dt_s * acceleration_mps2.y(),
-                          dt_s * acceleration_mps2.z()};
 
   // Goals come from the registration of the current positions (kept from the last step or
   // registration), before any point moves.
@@ -803,64 +1092,69 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     object_spin = pseudoInverseSymmetric<3>(inertia).inverse * angular_momentum;
   }
 
-  const auto integrate = [&](double* x, double* v, const double (&goal)[3],
-                             const double (&target_velocity)[3]) {
-    for (int r = 0; r < 3; ++r) {
-      if constexpr (Damped) v[r] += damping * (target_velocity[r] - v[r]);
-      v[r] += pull * (goal[r] - x[r]) + kick[r];
-      x[r] += dt_s * v[r];
-    }
-  };
-  const auto rigidVelocity = [&](const Eigen::Vector3d& x, double (&out)[3]) {
-    const Eigen::Vector3d velocity = object_velocity + object_spin.cross(x - object_center);
-    for (int r = 0; r < 3; ++r) out[r] = velocity[r];
-  };
+  StepMotion motion;
+  motion.dt_s = dt_s;
+  motion.pull = config_.stiffness / dt_s;
+  motion.damping = config_.damping;
+  for (int r = 0; r < 3; ++r) {
+    motion.kick[r] = dt_s * acceleration_mps2[r];
+    motion.object_center[r] = object_center[r];
+    motion.object_velocity[r] = object_velocity[r];
+    motion.object_spin[r] = object_spin[r];
+  }
 
   // Move the points; the same pass sums the moved points for the next fit.
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     const GoalKernel<K> kernel(goal_transforms_[k], goal_translations_[k]);
     const Eigen::Vector3d reference = deformations_[k].center_of_mass;
-    Moments<K> next;
-    double goal[3];
-    double target_velocity[3] = {};
-    for (std::size_t j = 0; j < cluster.exclusive_count; ++j) {
-      const std::uint32_t i = cluster.points[j];
-      double f[K];
-      featureArray<K>(cluster.rest_offsets[j], f);
-      kernel.goalFromFeatures(f, goal);
-      double* x = positions_[i].data();
-      double* v = velocities_[i].data();
-      if constexpr (Damped) rigidVelocity(positions_[i], target_velocity);
-      integrate(x, v, goal, target_velocity);
-      const double p[3] = {x[0] - reference.x(), x[1] - reference.y(), x[2] - reference.z()};
-      for (int r = 0; r < 3; ++r) {
-        next.offset[r] += p[r];
-        next.momentum[r] += v[r];
-        for (int c = 0; c < K; ++c) next.offset_features[r][c] += p[r] * f[c];
-      }
-      if constexpr (Damped) {
-        next.angular_momentum[0] += p[1] * v[2] - p[2] * v[1];
-        next.angular_momentum[1] += p[2] * v[0] - p[0] * v[2];
-        next.angular_momentum[2] += p[0] * v[1] - p[1] * v[0];
+    PartialMoments<K> next;
+    std::size_t j = 0;
+#if defined(__GNUC__) && defined(__x86_64__)
+    if (wide_vectors_) {
+      j = moveExclusiveAvx512<K, Damped>(kernel, cluster, motion, positions_.data(),
+                                         velocities_.data(), reference, next);
+    }
+#endif
+    // The wide vectors took whole blocks of eight, so slot j + n goes to part n.
+    for (; j < cluster.exclusive_count; j += kParts) {
+      const int lanes =
+          static_cast<int>(std::min<std::size_t>(kParts, cluster.exclusive_count - j));
+      double p[3][kParts];
+      double v[3][kParts];
+      double f[K][kParts];
+      for (int n = 0; n < lanes; ++n) {
+        const std::uint32_t i = cluster.points[j + n];
+        double features[K];
+        featureArray<K>(cluster.rest_offsets[j + n], features);
+        double goal[3];
+        kernel.goalFromFeatures(features, goal);
+        double* x = positions_[i].data();
+        double* u = velocities_[i].data();
+        motion.move<Damped>(goal, x, u);
+        for (int c = 0; c < K; ++c) f[c][n] = features[c];
         for (int r = 0; r < 3; ++r) {
-          for (int c = 0; c < 3; ++c) next.second_moment[r][c] += p[r] * p[c];
+          p[r][n] = x[r] - reference[r];
+          v[r][n] = u[r];
         }
       }
+      const double no_weights[kParts] = {};
+      next.template addLanes<false, true, Damped>(lanes, no_weights, p, v, f);
     }
-    std::size_t j = cluster.exclusive_count;
+    j = cluster.exclusive_count;
 #if defined(__GNUC__) && defined(__x86_64__)
     if (wide_vectors_) j = addSharedGoalsAvx512<K>(kernel, cluster, goal_sums_.data());
 #endif
     for (; j < cluster.points.size(); ++j) {
       const std::uint32_t i = cluster.points[j];
+      double goal[3];
       kernel.goal(cluster.rest_offsets[j], goal);
       goal_sums_[i] += Eigen::Vector3d(goal[0], goal[1], goal[2]);
     }
     ClusterSums& sums = cluster_sums_[k];
     sums = ClusterSums{};
     sums.reference = reference;
-    addScaled(next, point_mass_kg_, sums);
+    addScaled(next.total(), point_mass_kg_, sums);
   }
 
   // A shared point takes the mean of its clusters' goals; the rigid velocity it is damped
@@ -868,10 +1162,8 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   for (const std::uint32_t i : shared_points_) {
     const double share = 1.0 / membership_counts_[i];
     double goal[3];
-    double target_velocity[3] = {};
     for (int r = 0; r < 3; ++r) goal[r] = share * goal_sums_[i][r];
-    if constexpr (Damped) rigidVelocity(positions_[i], target_velocity);
-    integrate(positions_[i].data(), velocities_[i].data(), goal, target_velocity);
+    motion.move<Damped>(goal, positions_[i].data(), velocities_[i].data());
     goal_sums_[i].setZero();
   }
 
@@ -881,7 +1173,8 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     if (cluster.exclusive_count < cluster.points.size()) {
       addScaled(accumulate<K, true, Damped>(cluster, cluster.exclusive_count, cluster.points.size(),
                                             cluster.shared_weights_kg.data(), positions_,
-                                            velocities_, cluster_sums_[k].reference),
+                                            velocities_, cluster_sums_[k].reference,
+                                            wide_vectors_),
                 1.0, cluster_sums_[k]);
     }
     setGoalTransform<K>(cluster, fitCluster<Mode>(cluster, cluster_sums_[k], deformation),
@@ -895,7 +1188,8 @@ void ShapeMatchingBody::sumCurrentState() {
   constexpr int K = kFeatureCount<Mode>;
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     cluster_sums_[k] = clusterSums<K, true, true>(clusters_[k], point_mass_kg_, positions_,
-                                                  velocities_, deformations_[k].center_of_mass);
+                                                  velocities_, deformations_[k].center_of_mass,
+                                                  wide_vectors_);
   }
 }
 

@@ -101,8 +101,9 @@ struct ClusterSums {
 /// per-cycle work and allocate nothing.
 class ShapeMatchingBody {
  public:
-  /// Uses the wide vectors, if asked and available, for the goals of shared points and the
-  /// fit residuals: eight points per instruction, the same bits as without.
+  /// Uses the wide vectors, if asked and available, for the per-point passes of a step and
+  /// of the fit residuals: eight points per instruction, the same bits as without. Sums over
+  /// points are taken in eight interleaved parts either way.
   /// @throw std::invalid_argument naming the bad value: empty or non-finite rest points,
   ///        mass_kg <= 0, stiffness, beta or damping outside [0, 1], clusters outside
   ///        [1, points], negative overlap.
