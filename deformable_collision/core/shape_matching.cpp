@@ -72,6 +72,26 @@ inline double sumOfParts(const double (&parts)[kParts]) {
          ((parts[4] + parts[5]) + (parts[6] + parts[7]));
 }
 
+/// Up to eight slots' terms for PartialMoments::addLanes, one slot per lane: weights w,
+/// offsets p from the reference, velocities v and features f.
+template <int K>
+struct SlotLanes {
+  double w[kParts];
+  double p[3][kParts];
+  double v[3][kParts];
+  double f[K][kParts];
+
+  /// Lane n: a slot's features, and its point at x with velocity u.
+  void set(int n, const double (&features)[K], const double* x, const double* u,
+           const Eigen::Vector3d& reference) {
+    for (int c = 0; c < K; ++c) f[c][n] = features[c];
+    for (int r = 0; r < 3; ++r) {
+      p[r][n] = x[r] - reference[r];
+      v[r][n] = u[r];
+    }
+  }
+};
+
 /// Moments of a range of a cluster's slots in eight interleaved parts: the range's n-th
 /// slot goes to part n % 8. The wide kernels sum eight slots per instruction this way and
 /// the portable code sums the same way, lane by lane, so that both give the same bits.
@@ -83,12 +103,15 @@ struct PartialMoments {
   double angular_momentum[3][kParts] = {};
   double second_moment[6][kParts] = {};  ///< The upper triangle, see kUpperRow.
 
-  /// Adds the first `lanes` of a block of slots, lane n to part n: weights w, offsets p from
-  /// the reference, velocities v and features f. Momentum feeds the centre-of-mass
-  /// prediction; spin terms feed the damping. Unweighted, w is 1 and multiplies nothing.
+  /// Adds the first `lanes` of a block of slots, lane n to part n. Momentum feeds the
+  /// centre-of-mass prediction; spin terms feed the damping. Unweighted, the weights are not
+  /// read: a weight of 1 would multiply nothing.
   template <bool Weighted, bool WithMomentum, bool WithSpin>
-  void addLanes(int lanes, const double (&w)[kParts], const double (&p)[3][kParts],
-                const double (&v)[3][kParts], const double (&f)[K][kParts]) {
+  void addLanes(int lanes, const SlotLanes<K>& slots) {
+    const auto& w = slots.w;
+    const auto& p = slots.p;
+    const auto& v = slots.v;
+    const auto& f = slots.f;
     double wp[3][kParts];
     for (int r = 0; r < 3; ++r) {
       for (int n = 0; n < lanes; ++n) {
@@ -496,25 +519,18 @@ Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end
   // The wide vectors took whole blocks of eight, so slot j + n goes to part n.
   for (; j < end; j += kParts) {
     const int lanes = static_cast<int>(std::min<std::size_t>(kParts, end - j));
-    double w[kParts];
-    double p[3][kParts];
-    double v[3][kParts];
-    double f[K][kParts];
+    SlotLanes<K> slots;
     for (int n = 0; n < lanes; ++n) {
       const std::uint32_t i = cluster.points[j + n];
       double features[K];
       featureArray<K>(cluster.rest_offsets[j + n], features);
-      for (int c = 0; c < K; ++c) f[c][n] = features[c];
-      for (int r = 0; r < 3; ++r) {
-        p[r][n] = positions[i][r] - reference[r];
-        v[r][n] = velocities[i][r];
-      }
-      w[n] = weights != nullptr ? weights[j + n - begin] : 1.0;
+      slots.set(n, features, positions[i].data(), velocities[i].data(), reference);
+      slots.w[n] = weights != nullptr ? weights[j + n - begin] : 1.0;
     }
     if (weights != nullptr) {
-      sums.template addLanes<true, WithMomentum, WithSpin>(lanes, w, p, v, f);
+      sums.template addLanes<true, WithMomentum, WithSpin>(lanes, slots);
     } else {
-      sums.template addLanes<false, WithMomentum, WithSpin>(lanes, w, p, v, f);
+      sums.template addLanes<false, WithMomentum, WithSpin>(lanes, slots);
     }
   }
   return sums.total();
@@ -1120,9 +1136,7 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     for (; j < cluster.exclusive_count; j += kParts) {
       const int lanes =
           static_cast<int>(std::min<std::size_t>(kParts, cluster.exclusive_count - j));
-      double p[3][kParts];
-      double v[3][kParts];
-      double f[K][kParts];
+      SlotLanes<K> slots;
       for (int n = 0; n < lanes; ++n) {
         const std::uint32_t i = cluster.points[j + n];
         double features[K];
@@ -1132,14 +1146,9 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
         double* x = positions_[i].data();
         double* u = velocities_[i].data();
         motion.move<Damped>(goal, x, u);
-        for (int c = 0; c < K; ++c) f[c][n] = features[c];
-        for (int r = 0; r < 3; ++r) {
-          p[r][n] = x[r] - reference[r];
-          v[r][n] = u[r];
-        }
+        slots.set(n, features, x, u, reference);
       }
-      const double no_weights[kParts] = {};
-      next.template addLanes<false, true, Damped>(lanes, no_weights, p, v, f);
+      next.template addLanes<false, true, Damped>(lanes, slots);
     }
     j = cluster.exclusive_count;
 #if defined(__GNUC__) && defined(__x86_64__)
