@@ -332,8 +332,9 @@ void expectSameBits(const ShapeMatchingBody& wide, const ShapeMatchingBody& port
   }
 }
 
-// The wide-vector goals of shared points and fit residuals give the same bits as the
-// portable ones, through simulation, tracking with unobserved points, and responses.
+// The wide-vector passes (moves, sums, goals of shared points, fit residuals) give the same
+// bits as the portable ones, through simulation, tracking with unobserved points, and
+// responses.
 TEST_P(WideVectorTest, GiveTheSameBitsAsThePortableCode) {
   if (!wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
   const WideVectorCase& c = GetParam();
