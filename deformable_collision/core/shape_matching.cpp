@@ -525,7 +525,7 @@ Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end
       double features[K];
       featureArray<K>(cluster.rest_offsets[j + n], features);
       slots.set(n, features, positions[i].data(), velocities[i].data(), reference);
-      slots.w[n] = weights != nullptr ? weights[j + n - begin] : 1.0;
+      if (weights != nullptr) slots.w[n] = weights[j + n - begin];
     }
     if (weights != nullptr) {
       sums.template addLanes<true, WithMomentum, WithSpin>(lanes, slots);
