@@ -1,13 +1,57 @@
-// The core on a built-in scene, until the nodelet exists: objects, points, level of detail,
-// time per stage and contacts, over a fixed simulated time.
+// The core on a built-in scene: objects, points, level of detail, time per stage and
+// contacts, over a fixed simulated time, and a hash of the trajectory.
 // Usage: core_demo [scene=three_objects] [cycles=300] [level=-1 (finest)]
+#include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <string>
+#include <vector>
 
 #include "deformable_collision/core/demo_scenes.h"
 
 namespace dc = deformable_collision;
+
+namespace {
+
+// FNV-1a over the bytes of what a cycle produced: two runs hash alike exactly when every
+// contact and every point's position and velocity are the same bits, which is what a change
+// that claims to keep the behaviour (a refactoring, a faster kernel) must show.
+class TrajectoryHash {
+ public:
+  template <typename T>
+  void add(const T& value) {
+    unsigned char bytes[sizeof(T)];
+    std::memcpy(bytes, &value, sizeof(T));
+    for (unsigned char byte : bytes) hash_ = (hash_ ^ byte) * 0x100000001b3ULL;
+  }
+  void addVectors(const std::vector<Eigen::Vector3d>& vectors) {
+    for (const auto& v : vectors) {
+      add(v.x());
+      add(v.y());
+      add(v.z());
+    }
+  }
+  std::uint64_t value() const { return hash_; }
+
+ private:
+  std::uint64_t hash_ = 0xcbf29ce484222325ULL;
+};
+
+void addContacts(const std::vector<dc::SceneContact>& contacts, TrajectoryHash& hash) {
+  for (const auto& c : contacts) {
+    hash.add(c.object_a);
+    hash.add(c.object_b);
+    hash.add(c.contact.node_a);
+    hash.add(c.contact.node_b);
+    hash.add(c.contact.depth_m);
+    hash.add(c.contact.position.x());
+    hash.add(c.contact.position.y());
+    hash.add(c.contact.position.z());
+  }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   const std::string name = argc > 1 ? argv[1] : "three_objects";
@@ -41,6 +85,7 @@ int main(int argc, char** argv) {
 
   double shape_matching = 0.0, detection = 0.0, response = 0.0;
   std::size_t contacts = 0;
+  TrajectoryHash contact_hash;
   std::printf("%8s %10s %10s %10s %9s %12s\n", "cycle", "shape ms", "detect ms", "respond ms",
               "contacts", "spheres");
   for (int cycle = 0; cycle < cycles; ++cycle) {
@@ -51,6 +96,7 @@ int main(int argc, char** argv) {
     detection += s.detection_ms;
     response += s.response_ms;
     contacts += s.contacts;
+    addContacts(scene->contacts(), contact_hash);
     if (cycle % (cycles / 6 > 0 ? cycles / 6 : 1) == 0 || cycle == cycles - 1) {
       std::printf("%8d %10.3f %10.3f %10.3f %9zu %12zu\n", cycle, s.shape_matching_ms,
                   s.detection_ms, s.response_ms, s.contacts, s.spheres_updated);
@@ -60,5 +106,12 @@ int main(int argc, char** argv) {
               "%.0f contacts\n",
               shape_matching / cycles, detection / cycles, response / cycles,
               double(contacts) / cycles);
+  TrajectoryHash state_hash;
+  for (std::size_t o = 0; o < scene->objectCount(); ++o) {
+    state_hash.addVectors(scene->body(o).positions());
+    state_hash.addVectors(scene->body(o).velocities());
+  }
+  std::printf("trajectory hash: contacts %016" PRIx64 ", final state %016" PRIx64 "\n",
+              contact_hash.value(), state_hash.value());
   return 0;
 }
