@@ -1,9 +1,11 @@
-# Every target sets itself up: Debian packages, then a catkin workspace under build/.
+# Every target sets itself up: Debian packages (make deps), then a catkin workspace beside
+# this directory (make build): ../<this directory's name>_ws, or WORKSPACE=/path. Outside the
+# package, so that rospack finds the package once, through the workspace's src/ link.
 # Debian's python3 must come first on PATH for catkin and roslaunch (a pyenv one may not).
 SHELL := /bin/bash
 export PATH := /usr/bin:/bin:$(PATH)
 
-WORKSPACE := $(CURDIR)/build/ws
+WORKSPACE ?= $(abspath $(CURDIR)/../$(notdir $(CURDIR))_ws)
 JOBS ?= 2
 RVIZ ?= 0
 DEMO_ARGS ?=
@@ -23,7 +25,7 @@ test: build
 
 # Each libFuzzer target for FUZZ_SECONDS (make test runs them for 20 s each).
 fuzz: build
-	@bash scripts/run_sanitized "$(WORKSPACE)" "$(JOBS)" fuzz "$(FUZZ_SECONDS)" "$(CURDIR)/build/fuzz_results"
+	@bash scripts/run_sanitized "$(WORKSPACE)" "$(JOBS)" fuzz "$(FUZZ_SECONDS)" "$(WORKSPACE)/fuzz_results"
 
 # 300 tracked objects, clouds at 30 Hz each, the node at 100 Hz, for LOAD_SECONDS.
 load: build
@@ -45,4 +47,4 @@ screenshot: build
 	@bash scripts/render_demo_png "$(WORKSPACE)" docs/demo.png
 
 clean:
-	rm -rf build
+	rm -rf "$(WORKSPACE)"
