@@ -7,9 +7,8 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
-#if defined(__GNUC__) && defined(__x86_64__)
-#include <immintrin.h>
-#endif
+
+#include "deformable_collision/core/wide_kernels.h"
 
 namespace deformable_collision {
 namespace {
@@ -51,13 +50,7 @@ double nearestSquaredDistance(const double* xs, const double* ys, const double* 
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
-// GCC 12's AVX-512 intrinsics pass a deliberately undefined operand that its own
-// uninitialised-use warnings then report (GCC bug 105593).
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#if !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
+DEFORMABLE_COLLISION_BEGIN_WIDE_KERNELS
 
 /// Squared distances from (x, y, z) to eight points given by their coordinates, summed as
 /// the scalar code sums them, so both give the same bits.
@@ -172,7 +165,7 @@ __attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(
   return _mm512_mask_cmp_pd_mask(lanes, squared, _mm512_mul_pd(reach, reach), _CMP_LT_OQ);
 }
 
-#pragma GCC diagnostic pop
+DEFORMABLE_COLLISION_END_WIDE_KERNELS
 #endif
 
 /// Bit j set if sphere j of the `count` (<= 8) given by coordinate arrays comes within
