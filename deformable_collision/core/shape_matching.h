@@ -4,7 +4,6 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <optional>
-#include <type_traits>
 #include <string>
 #include <vector>
 
@@ -79,8 +78,8 @@ struct ClusterDeformation {
   /// [A Q M] of the fit; R alone for a rigid cluster.
   Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();                 ///< R.
-  /// Largest |transform * q~_i + translation - x_i| over the cluster's points (erratum 3):
-  /// the fit's residual, measured exactly after the points moved.
+  /// Largest |transform * q~_i + translation - x_i| over the cluster's points: the fit's
+  /// residual d (docs/design.md, erratum 3), measured exactly after the points moved.
   double goal_deviation_bound_m = 0.0;
 };
 
@@ -165,10 +164,6 @@ class ShapeMatchingBody {
   const ClusterDeformation& deformation(std::size_t k) const { return deformations_[k]; }
 
  private:
-  /// Calls action(std::integral_constant<DeformationMode, mode>{}) for the configured mode,
-  /// so that the per-point kernels are compiled per mode.
-  template <typename Action>
-  void withMode(Action&& action);
   template <DeformationMode Mode, bool Damped>
   void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);
   template <DeformationMode Mode>
@@ -176,9 +171,9 @@ class ShapeMatchingBody {
   template <DeformationMode Mode>
   void sumCurrentState();
   template <DeformationMode Mode>
-  void measureFitResiduals();
-  template <DeformationMode Mode>
   void applyDisplacements(const std::vector<PointDisplacement>& displacements);
+  template <DeformationMode Mode>
+  void refitDisplacedClusters();
 
   ShapeMatchingConfig config_;
   bool wide_vectors_ = false;
@@ -206,6 +201,9 @@ class ShapeMatchingBody {
     double largest_squared_m2 = 0.0;  ///< Of the displacements.
     bool touched = false;
   };
+  /// Displacements with the same dx in one cluster, summed once (see applyDisplacements).
+  template <int K>
+  struct DisplacementRun;
   std::vector<DisplacedMoments> displaced_moments_scratch_;  ///< One per cluster.
   std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
   std::vector<ClusterSums> cluster_sums_;  ///< Of the current positions and velocities.
