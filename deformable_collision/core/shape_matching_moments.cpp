@@ -1,6 +1,7 @@
+#include "deformable_collision/core/shape_matching_kernels.h"
+
 #include <algorithm>
 
-#include "deformable_collision/core/shape_matching_kernels.h"
 #include "deformable_collision/core/shape_matching_wide.h"
 
 namespace deformable_collision::detail {

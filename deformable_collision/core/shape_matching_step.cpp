@@ -1,3 +1,5 @@
+#include "deformable_collision/core/shape_matching.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -5,7 +7,6 @@
 #include <string>
 
 #include "deformable_collision/core/linear_algebra.h"
-#include "deformable_collision/core/shape_matching.h"
 #include "deformable_collision/core/shape_matching_fit.h"
 #include "deformable_collision/core/shape_matching_kernels.h"
 #include "deformable_collision/core/shape_matching_wide.h"

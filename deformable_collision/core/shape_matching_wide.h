@@ -2,8 +2,8 @@
 
 // Internal to the core: the AVX-512 twins of shape matching's per-point passes, eight slots
 // per instruction with the same bits as the portable code. Each handles whole blocks of
-// eight and returns the first slot left for the portable code. Only for a body whose
-// wideVectorsAvailable() and whose points number at most kMostWidePoints.
+// eight and returns the first slot left for the portable code. Callable only where
+// wideVectorsAvailable(), for a body of at most kMostWidePoints points.
 
 #include <Eigen/Core>
 #include <cstddef>
