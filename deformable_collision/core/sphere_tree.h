@@ -20,8 +20,9 @@ struct SphereTreeConfig {
 
 /// How the spheres of a cycle are obtained.
 enum class SphereUpdate {
-  /// From each cluster's goal transform and deviation bound (paper section 5.2 with the
-  /// errata of DESIGN.md): constant time per node, only for the nodes a query visits.
+  /// From each cluster's goal transform and deviation bound (the paper's section 5.2 with
+  /// the errata of docs/design.md): constant time per node, only for the nodes a query
+  /// visits.
   kDeformation,
   /// Smallest enclosing sphere of the node's current points, for the nodes a query
   /// visits: the tightest wrapped spheres, at a cost linear in the points under a node.
@@ -32,12 +33,12 @@ enum class SphereUpdate {
 };
 
 /// Rest-shape data of one node. Offsets are in the cluster's centred coordinates
-/// (x - x_cm^0, erratum 1), except for an object root over several clusters.
+/// (x - x_cm^0, docs/design.md, erratum 1), except for an object root over several clusters.
 struct SphereNode {
   Eigen::Vector3d rest_center = Eigen::Vector3d::Zero();  ///< c^0 - x_cm^0 of its cluster.
   double rest_radius_m = 0.0;                              ///< r^0.
-  double quadratic_extent_m2 = 0.0;  ///< q_max of eq. 13 in centred coordinates.
-  double mixed_extent_m2 = 0.0;      ///< m_max of eq. 14, third row as in erratum 2.
+  double quadratic_extent_m2 = 0.0;  ///< q_max of the paper's eq. 13, centred.
+  double mixed_extent_m2 = 0.0;      ///< m_max of eq. 14, with erratum 2.
   std::uint32_t first_child = 0;
   std::uint32_t child_count = 0;
   std::uint32_t first_point = 0;  ///< Range of the node's points in pointIndices().
@@ -89,7 +90,7 @@ struct SphereTreeCounters {
 /// Each cycle, spheres are computed when first asked for (sphere()), so a query that
 /// stops early touches only what it needs. Every point lies inside the sphere of every
 /// node that holds it, whatever the deformation: the deformation update adds each
-/// cluster's exact goal deviation bound (erratum 3) and a relative rounding margin.
+/// cluster's exact goal deviation bound (docs/design.md, erratum 3) and a relative rounding margin.
 class SphereTree {
  public:
   /// A tree's buckets are its nodes of at most this many leaves with no such node above

@@ -560,7 +560,8 @@ TEST(Track, WrongSizeThrowsAndLeavesTheStateAlone) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Stability matrix (DESIGN.md section 5). Every case runs 300 steps under gravity twice:
+// Stability matrix: every mode, stiffness 0 to 1, steps up to 0.1 s, degenerate and inverted
+// clusters (docs/design.md, "Shape matching"). Every case runs 300 steps under gravity twice:
 // with the default goals (volume-preserving, damping 0.1) and undamped with conservative
 // goals (preserve_volume off, damping 0). Nothing may become NaN or Inf, and the energy
 // stays bounded, measured against D, the largest distance of the start from the rigidly
