@@ -140,7 +140,14 @@ class Scene {
   std::unique_ptr<Object> makeObject(const ObjectConfig& config,
                                      std::vector<Eigen::Vector3d> rest_points_m) const;
   void refreshStaleTrees();
+
+  // The broad phase (scene_broad_phase.cpp).
   void sweepAndPrune();
+  void updateSweepBoxes();
+  /// Insertion sort by the boxes' lower x (the order of the last sweep is nearly right).
+  void sortSweepEntries();
+  void collectOverlappingPairs();
+  void sortCandidatePairs();
   /// The contacts of one object pair: contacts[begin, end).
   struct ContactRun {
     std::uint32_t object_a = 0;
@@ -148,15 +155,35 @@ class Scene {
     std::size_t begin = 0;
     std::size_t end = 0;
   };
-
   /// Appends the contacts at `level` and, if `runs` is given, each object pair's range of
   /// them.
   void detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
               std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
+
+  // The response (scene_response.cpp, scene_contact_normal.cpp).
+  struct ContactPush;
+  struct ResolvingPair;
   void respond();
+  /// Counts each object's hops to a fixed one over touching objects (support_depth).
   void rankSupport();
+  /// Moves a dynamic object by its pairs' pushes and dents it where they need more.
+  void applyObjectResponse(Object& object);
   void resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
                    std::size_t run_begin, std::size_t run_end);
+  Eigen::Vector3d sideOfA(const ResolvingPair& pair);
+  Eigen::Vector3d separatingNormal(const ResolvingPair& pair);
+  /// One push per contact still too deep into pushes_.
+  void collectPushes(const ResolvingPair& pair);
+  bool pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& contact,
+                          ContactPush& push);
+  bool pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& contact,
+                          ContactPush& push) const;
+  void moveByMeanPush(ResolvingPair& pair);
+  void queueDents(const ResolvingPair& pair);
+  void rememberSide(const ResolvingPair& pair, const Eigen::Vector3d& normal);
+  void exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& normal);
+  void holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
+                          double share_a) const;
 
   /// One contact's push: depths along `normal` (from b to a) that a and b must move.
   struct ContactPush {

@@ -1,0 +1,139 @@
+// The broad phase: a sweep and prune over the objects' boxes gives the candidate pairs, and
+// the hierarchy query finds each candidate pair's contacts.
+#include <algorithm>
+
+#include "deformable_collision/core/scene_object.h"
+
+namespace deformable_collision {
+namespace {
+
+/// Writes a query's contacts straight into the scene's list, tagged with their objects.
+class PairContacts final : public ContactSink {
+ public:
+  PairContacts(std::vector<SceneContact>& contacts, std::uint32_t object_a, std::uint32_t object_b)
+      : contacts_(contacts), object_a_(object_a), object_b_(object_b) {}
+  SphereContact& add() override {
+    return contacts_.emplace_back(SceneContact{object_a_, object_b_, SphereContact{}}).contact;
+  }
+
+ private:
+  std::vector<SceneContact>& contacts_;
+  std::uint32_t object_a_;
+  std::uint32_t object_b_;
+};
+
+}  // namespace
+
+void Scene::updateSweepBoxes() {
+  const double margin = 0.5 * config_.contact_distance_m;
+  if (sweep_entries_.size() != objects_.size()) {
+    sweep_entries_.clear();
+    for (std::uint32_t i = 0; i < objects_.size(); ++i) sweep_entries_.push_back({{}, i, false});
+  }
+  for (SweepEntry& entry : sweep_entries_) {
+    Object& o = *objects_[entry.object];
+    entry.is_static = o.config.kind == ObjectKind::kStatic;
+    // Static objects keep their points' box, set when they were made.
+    if (!entry.is_static) {
+      const Sphere& root = o.tree.sphere(0);
+      const Eigen::Vector3d reach = Eigen::Vector3d::Constant(root.radius + margin);
+      o.sweep_box = Eigen::AlignedBox3d(root.center - reach, root.center + reach);
+    }
+    entry.box = o.sweep_box;
+  }
+}
+
+void Scene::sortSweepEntries() {
+  const auto before = [](const SweepEntry& a, const SweepEntry& b) {
+    return a.box.min().x() < b.box.min().x() ||
+           (a.box.min().x() == b.box.min().x() && a.object < b.object);
+  };
+  for (std::size_t i = 1; i < sweep_entries_.size(); ++i) {
+    const SweepEntry entry = sweep_entries_[i];
+    std::size_t j = i;
+    for (; j > 0 && before(entry, sweep_entries_[j - 1]); --j) {
+      sweep_entries_[j] = sweep_entries_[j - 1];
+    }
+    sweep_entries_[j] = entry;
+  }
+}
+
+// Objects overlapping the current one along x are those after it whose interval starts
+// before its own ends; of those, the ones whose boxes overlap along y and z are kept.
+void Scene::collectOverlappingPairs() {
+  candidate_pairs_.clear();
+  for (std::size_t s = 0; s < sweep_entries_.size(); ++s) {
+    const SweepEntry& first = sweep_entries_[s];
+    for (std::size_t t = s + 1; t < sweep_entries_.size(); ++t) {
+      const SweepEntry& second = sweep_entries_[t];
+      if (second.box.min().x() > first.box.max().x()) break;
+      // Overlapping along x by the sweep; y and z decide, without a branch.
+      const bool overlap = (second.box.min().y() <= first.box.max().y()) &
+                           (first.box.min().y() <= second.box.max().y()) &
+                           (second.box.min().z() <= first.box.max().z()) &
+                           (first.box.min().z() <= second.box.max().z()) &
+                           !(first.is_static & second.is_static);
+      if (!overlap) continue;
+      candidate_pairs_.emplace_back(std::min(first.object, second.object),
+                                    std::max(first.object, second.object));
+    }
+  }
+}
+
+// Deterministic contact order, whatever the sweep order: by first object (a counting sort),
+// then by second (an object has a handful of partners).
+void Scene::sortCandidatePairs() {
+  pair_offsets_.assign(objects_.size() + 1, 0);
+  for (const auto& pair : candidate_pairs_) ++pair_offsets_[pair.first + 1];
+  for (std::size_t i = 0; i < objects_.size(); ++i) pair_offsets_[i + 1] += pair_offsets_[i];
+  sorted_pairs_.resize(candidate_pairs_.size());
+  for (const auto& pair : candidate_pairs_) sorted_pairs_[pair_offsets_[pair.first]++] = pair;
+  // Each offset now ends its object's run, where the next object's begins.
+  std::uint32_t run_begin = 0;
+  for (std::size_t i = 0; i < objects_.size(); ++i) {
+    const std::uint32_t run_end = pair_offsets_[i];
+    for (std::uint32_t k = run_begin + 1; k < run_end; ++k) {
+      const auto pair = sorted_pairs_[k];
+      std::uint32_t j = k;
+      for (; j > run_begin && pair.second < sorted_pairs_[j - 1].second; --j) {
+        sorted_pairs_[j] = sorted_pairs_[j - 1];
+      }
+      sorted_pairs_[j] = pair;
+    }
+    run_begin = run_end;
+  }
+  candidate_pairs_.swap(sorted_pairs_);
+}
+
+void Scene::sweepAndPrune() {
+  updateSweepBoxes();
+  sortSweepEntries();
+  collectOverlappingPairs();
+  sortCandidatePairs();
+}
+
+void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
+                   std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs) {
+  sweepAndPrune();
+  const auto matches = [&](std::size_t a, std::size_t b) {
+    const bool a_ok = !only_a || *only_a == a;
+    const bool b_ok = !only_b || *only_b == b;
+    return a_ok && b_ok;
+  };
+  for (const auto& [a, b] : candidate_pairs_) {
+    // A pair matches the filter in either order; contacts keep the order asked for.
+    const bool forward = matches(a, b);
+    const bool backward = !forward && matches(b, a);
+    if (!forward && !backward) continue;
+    const std::uint32_t first = forward ? a : b;
+    const std::uint32_t second = forward ? b : a;
+    ++stats_.object_pairs_tested;
+    PairContacts pair_contacts(contacts, first, second);
+    const std::size_t begin = contacts.size();
+    query_.collide(objects_[first]->tree, objects_[second]->tree, level,
+                   config_.contact_distance_m, pair_contacts, query_counters_);
+    if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
+  }
+}
+
+}  // namespace deformable_collision

@@ -1,0 +1,98 @@
+// Dents: what a contact node needs beyond its object's move is pushed into the object
+// locally, and shape matching restores it.
+#include <algorithm>
+
+#include "deformable_collision/core/scene_object.h"
+
+namespace deformable_collision {
+namespace scene_internal {
+
+void DentScratch::reserve(std::size_t point_count, std::size_t node_count) {
+  displacement_sums.assign(point_count, Eigen::Vector3d::Zero());
+  velocity_change_sums.assign(point_count, Eigen::Vector3d::Zero());
+  displacement_counts.assign(point_count, 0);
+  displaced_points.reserve(point_count);
+  displacements.reserve(point_count);
+  dent_of_node.assign(node_count, 0);
+  dent_pair_of_node.assign(node_count, 0);
+}
+
+// The contacts of one node with one partner share a direction (the pair's normal, or a
+// fixed node's plane): they are kept as one dent with a list of depths, so that the node's
+// points are visited once for all of them.
+void DentScratch::add(std::uint32_t node, const Eigen::Vector3d& away, double depth_unmoved_m,
+                      std::uint32_t partner, std::uint64_t pair_serial) {
+  const std::uint32_t depth = static_cast<std::uint32_t>(depths.size());
+  depths.push_back({depth_unmoved_m, kNoDepth});
+  if (dent_pair_of_node[node] == pair_serial) {
+    PendingDent& last = pending[dent_of_node[node]];
+    if (last.away == away) {
+      depths[last.last_depth].next = depth;
+      last.last_depth = depth;
+      return;
+    }
+  }
+  dent_pair_of_node[node] = pair_serial;
+  dent_of_node[node] = static_cast<std::uint32_t>(pending.size());
+  pending.push_back({node, away, partner, depth, depth});
+}
+
+void DentScratch::averageDisplacements() {
+  displacements.clear();
+  for (const std::uint32_t point : displaced_points) {
+    const double share = 1.0 / displacement_counts[point];
+    displacements.push_back(
+        {point, share * displacement_sums[point], share * velocity_change_sums[point]});
+    displacement_sums[point].setZero();
+    velocity_change_sums[point].setZero();
+    displacement_counts[point] = 0;
+  }
+  displaced_points.clear();
+}
+
+}  // namespace scene_internal
+
+// A dented point is blocked by the other object: it also stops moving into it (the other
+// object takes that momentum). Left alone, the goal step turns each cycle's dent into
+// motion towards the contact, and a held contact pumps up speed. Both velocities are those
+// after this response's whole-object changes (velocity_after): a point measured before its
+// object's own change would be stopped twice, and a resting object would leave each cycle
+// moving up.
+void Scene::Object::applyPendingDents(const std::vector<std::unique_ptr<Object>>& objects) {
+  using scene_internal::DentScratch;
+  const auto& velocities = body.velocities();
+  for (const DentScratch::PendingDent& pending : dents.pending) {
+    // Each of the node's contacts with the partner dents it by what it needs beyond the
+    // object's move; a point takes the mean over all the dents it gets.
+    const double moved = translation.dot(pending.away);
+    double beyond_sum = 0.0;
+    std::uint32_t beyond_count = 0;
+    for (std::uint32_t d = pending.first_depth; d != DentScratch::kNoDepth;
+         d = dents.depths[d].next) {
+      const double beyond = dents.depths[d].depth_unmoved_m - moved;
+      if (beyond <= 0.0) continue;
+      beyond_sum += beyond;
+      ++beyond_count;
+    }
+    if (beyond_count == 0) continue;
+    // The partner's velocity after the response, less this object's own change: what a
+    // point's current velocity is compared with.
+    const Eigen::Vector3d other_velocity =
+        objects[pending.partner]->velocity_after - velocity_change;
+    const Eigen::Vector3d displacement = beyond_sum * pending.away;
+    const SphereNode& node = tree.node(pending.node);
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      const std::uint32_t point = tree.pointIndices()[s];
+      if (dents.displacement_counts[point] == 0) dents.displaced_points.push_back(point);
+      dents.displacement_counts[point] += beyond_count;
+      dents.displacement_sums[point] += displacement;
+      const double inward =
+          std::min(0.0, (velocities[point] - other_velocity).dot(pending.away));
+      dents.velocity_change_sums[point] -= (beyond_count * inward) * pending.away;
+    }
+  }
+  dents.pending.clear();
+  dents.depths.clear();
+}
+
+}  // namespace deformable_collision

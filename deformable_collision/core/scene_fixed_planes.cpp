@@ -1,0 +1,84 @@
+// Fixed planes: the rest plane of every node of a static or kinematic object, against
+// which the response measures how deep a dynamic object's points have gone.
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+
+#include "deformable_collision/core/scene_object.h"
+
+namespace deformable_collision {
+namespace scene_internal {
+namespace {
+
+/// Each node's own best-fit plane normal, and whether its points clearly span a plane: 16
+/// points or more, least spread under a tenth of the middle one. A handful of points always
+/// fits some plane (three do exactly), often a wrong one.
+void fitOwnPlanes(const ShapeMatchingBody& body, const SphereTree& tree,
+                  std::vector<Eigen::Vector3d>& own_normal, std::vector<std::uint8_t>& planar) {
+  const auto& rest = body.restPositions();
+  for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
+    const SphereNode& node = tree.node(n);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      mean += rest[tree.pointIndices()[s]];
+    }
+    mean /= node.point_count;
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      const Eigen::Vector3d d = rest[tree.pointIndices()[s]] - mean;
+      covariance += d * d.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+    own_normal[n] = solver.eigenvectors().col(0);
+    planar[n] = node.point_count >= 16 && solver.eigenvalues()(0) < 0.1 * solver.eigenvalues()(1);
+  }
+}
+
+/// The parent of every node (the root is its own).
+std::vector<std::uint32_t> parentsOf(const SphereTree& tree) {
+  std::vector<std::uint32_t> parent(tree.nodeCount(), 0);
+  for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
+    const SphereNode& node = tree.node(n);
+    for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+      parent[c] = n;
+    }
+  }
+  return parent;
+}
+
+}  // namespace
+
+void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree) {
+  const std::uint32_t count = static_cast<std::uint32_t>(tree.nodeCount());
+  const std::vector<std::uint32_t> parent = parentsOf(tree);
+  std::vector<Eigen::Vector3d> own_normal(count);
+  std::vector<std::uint8_t> planar(count, 0);
+  fitOwnPlanes(body, tree, own_normal, planar);
+  const auto& rest = body.restPositions();
+  normals.resize(count);
+  extent_along.resize(count);
+  extent_against.resize(count);
+  for (std::uint32_t n = 0; n < count; ++n) {
+    std::uint32_t source = n;
+    while (!planar[source] && source != 0) source = parent[source];
+    normals[n] = own_normal[source];
+    const SphereNode& node = tree.node(n);
+    const Eigen::Vector3d center =
+        node.cluster < 0 ? node.rest_center
+                         : Eigen::Vector3d(node.rest_center +
+                                           body.cluster(node.cluster).rest_center_of_mass);
+    // The sphere's centre need not lie midway between the layers of a slab (a few points
+    // of the top layer may fix the sphere), so each side is measured on its own.
+    double along = 0.0;
+    double against = 0.0;
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      const double offset = (rest[tree.pointIndices()[s]] - center).dot(normals[n]);
+      along = std::max(along, offset);
+      against = std::max(against, -offset);
+    }
+    extent_along[n] = along;
+    extent_against[n] = against;
+  }
+}
+
+}  // namespace scene_internal
+}  // namespace deformable_collision

@@ -1,0 +1,395 @@
+// The contact response: each pair of touching objects is pushed apart along one normal and
+// stops approaching, objects nearer to a fixed support acting as fixed (shock propagation).
+#include <algorithm>
+#include <limits>
+
+#include "deformable_collision/core/scene_object.h"
+
+namespace deformable_collision {
+namespace {
+
+/// The change of a's velocity relative to b's that stops their approach along `normal` and
+/// brakes their sliding across it by at most `friction` times that (Coulomb).
+Eigen::Vector3d stopApproach(const Eigen::Vector3d& relative, const Eigen::Vector3d& normal,
+                             double friction) {
+  const double approach = std::min(0.0, relative.dot(normal));
+  const Eigen::Vector3d sliding = relative - relative.dot(normal) * normal;
+  const double sliding_speed = sliding.norm();
+  Eigen::Vector3d change = -approach * normal;
+  if (sliding_speed > 0.0) {
+    change -= std::min(sliding_speed, -friction * approach) / sliding_speed * sliding;
+  }
+  return change;
+}
+
+}  // namespace
+
+namespace scene_internal {
+
+void PairContactNodes::reserve(std::size_t node_count) {
+  contacts_of_node.assign(node_count, 0);
+  reach_of_node.assign(node_count, 0.0);
+  nodes.reserve(node_count);
+}
+
+ContactMemory::ContactSide* ContactMemory::find(std::uint32_t partner) {
+  for (ContactSide& side : sides) {
+    if (side.partner == partner) return &side;
+  }
+  return nullptr;
+}
+
+void ContactMemory::remember(std::uint32_t partner, const Eigen::Vector3d& normal,
+                             std::uint64_t cycle) {
+  if (ContactSide* side = find(partner)) {
+    side->normal = normal;
+    side->cycle = cycle;
+  } else {
+    sides.push_back({partner, normal, cycle});
+  }
+}
+
+void ContactMemory::forgetBefore(std::uint64_t cycle) {
+  sides.erase(std::remove_if(sides.begin(), sides.end(),
+                             [&](const ContactSide& side) { return side.cycle + 1 < cycle; }),
+              sides.end());
+}
+
+}  // namespace scene_internal
+
+void Scene::rankSupport() {
+  constexpr std::uint32_t kUnsupported = std::numeric_limits<std::uint32_t>::max();
+  // Adjacency of the touching pairs (the contact runs), in compressed rows.
+  const std::size_t count = objects_.size();
+  neighbour_offsets_.assign(count + 1, 0);
+  for (const ContactRun& run : contact_runs_) {
+    ++neighbour_offsets_[run.object_a + 1];
+    ++neighbour_offsets_[run.object_b + 1];
+  }
+  for (std::size_t i = 0; i < count; ++i) neighbour_offsets_[i + 1] += neighbour_offsets_[i];
+  neighbours_.resize(neighbour_offsets_[count]);
+  neighbour_fill_.assign(neighbour_offsets_.begin(), neighbour_offsets_.end() - 1);
+  for (const ContactRun& run : contact_runs_) {
+    neighbours_[neighbour_fill_[run.object_a]++] = run.object_b;
+    neighbours_[neighbour_fill_[run.object_b]++] = run.object_a;
+  }
+  // Breadth-first from the fixed objects.
+  support_queue_.clear();
+  for (std::uint32_t i = 0; i < count; ++i) {
+    objects_[i]->support_depth = objects_[i]->dynamic() ? kUnsupported : 0;
+    if (!objects_[i]->dynamic()) support_queue_.push_back(i);
+  }
+  for (std::size_t head = 0; head < support_queue_.size(); ++head) {
+    const std::uint32_t from = support_queue_[head];
+    const std::uint32_t depth = objects_[from]->support_depth + 1;
+    for (std::uint32_t n = neighbour_offsets_[from]; n < neighbour_offsets_[from + 1]; ++n) {
+      Object& other = *objects_[neighbours_[n]];
+      if (other.support_depth <= depth) continue;
+      other.support_depth = depth;
+      support_queue_.push_back(neighbours_[n]);
+    }
+  }
+}
+
+void Scene::respond() {
+  // Objects are separated to half the contact distance: resting objects stay in contact
+  // (closer than the contact distance) and are still held apart.
+  ++cycle_count_;
+  rankSupport();
+  for (auto& object : objects_) object->contact_memory.forgetBefore(cycle_count_);
+  // Each pair of touching objects is resolved in two parts. The whole object moves by the
+  // mean push of its contact nodes (weighted by their points) and stops approaching the
+  // other along the pair's normal (perfectly inelastic between the centres of mass); only
+  // what a node needs beyond that mean is pushed into the object locally, as a dent that
+  // shape matching restores. A rigid object thus lands without deforming and a soft one
+  // dents where it touches most. Velocity corrections of single nodes do not survive the
+  // next goal step: it spreads them over the object, so a resting object sinks, or,
+  // cancelling the motion the goals give the pushed points, bounces.
+  for (const ContactRun& run : contact_runs_) {
+    Object& a = *objects_[run.object_a];
+    Object& b = *objects_[run.object_b];
+    if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
+  }
+  for (auto& object : objects_) {
+    object->velocity_after = object->dynamic()
+                                 ? Eigen::Vector3d(object->body.meanVelocity() + object->velocity_change)
+                                 : Eigen::Vector3d::Zero();
+  }
+  for (auto& object : objects_) {
+    if (object->dynamic()) applyObjectResponse(*object);
+  }
+  // Queries between cycles see the state after the response.
+  refreshStaleTrees();
+}
+
+void Scene::applyObjectResponse(Object& object) {
+  object.applyPendingDents(objects_);
+  const bool moved = object.translation.squaredNorm() > 0.0 ||
+                     object.velocity_change.squaredNorm() > 0.0 ||
+                     !object.dents.displaced_points.empty();
+  if (!moved) return;
+  // An object moves at most the contact distance per response beyond what this cycle's
+  // step moved it, so it cannot jump past a layer thinner than that before the layer's
+  // contacts are seen; deeper overlaps take a few cycles. The step's own motion can always
+  // be undone: with a long step, gravity alone takes a resting object deeper than the
+  // contact distance (g h^2 = 2.5 cm at h = 0.05 s), and a smaller cap sinks it.
+  const double allowed =
+      config_.contact_distance_m + config_.dt_s * object.body.meanVelocity().norm();
+  const double reach = object.translation.norm();
+  if (reach > allowed) object.translation *= allowed / reach;
+  object.body.moveRigidly(object.translation, object.velocity_change);
+  object.translation.setZero();
+  object.velocity_change.setZero();
+  object.dents.averageDisplacements();
+  stats_.points_displaced += object.dents.displacements.size();
+  object.body.displacePoints(object.dents.displacements);
+  object.stale = true;
+}
+
+void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
+                        std::size_t run_begin, std::size_t run_end) {
+  // Pushes per contact, for a (along +normal) and b (along -normal): a node's depth along
+  // a normal from b to a, shared by inverse mass between dynamic nodes.
+  pushes_.clear();
+  ++pair_serial_;
+  ResolvingPair pair{a,
+                     b,
+                     index_a,
+                     index_b,
+                     run_begin,
+                     run_end,
+                     a.dynamic() != b.dynamic(),
+                     contacts_[run_begin].contact.point_a != SphereContact::kNoPoint,
+                     a.translation,
+                     b.translation};
+  pair.side_of_a = sideOfA(pair);
+  if (!pair.one_side_fixed) pair.dynamic_normal = separatingNormal(pair);
+  collectPushes(pair);
+  if (pushes_.empty()) return;
+  moveByMeanPush(pair);
+  // Dents wait until every pair has moved the object: a later pair may move it back, as
+  // the second jaw of a gripper does, and a dent sized against this pair's move alone
+  // would leave the first jaw's contact deep inside.
+  queueDents(pair);
+  const Eigen::Vector3d normal = pair.normal_sum.normalized();
+  rememberSide(pair, normal);
+  exchangeVelocities(pair, normal);
+}
+
+// The side a lies on, seen from b: as in the last cycle of this contact, or for a new
+// contact, where the objects' centres are. A fixed object's centre says little (a wall's
+// lies a metre above what touches it), so its side is where its touched nodes are.
+Eigen::Vector3d Scene::sideOfA(const ResolvingPair& pair) {
+  Object& a = pair.a;
+  Object& b = pair.b;
+  Object& remembering = a.dynamic() ? a : b;
+  const std::uint32_t partner = &remembering == &a ? pair.index_b : pair.index_a;
+  const auto* remembered = remembering.contact_memory.find(partner);
+  if (remembered && remembered->cycle + 1 >= cycle_count_) {
+    return &remembering == &a ? remembered->normal : Eigen::Vector3d(-remembered->normal);
+  }
+  if (!pair.one_side_fixed) return a.tree.sphere(0).center - b.tree.sphere(0).center;
+  const bool a_fixed = !a.dynamic();
+  Object& fixed = a_fixed ? a : b;
+  Eigen::Vector3d touched = Eigen::Vector3d::Zero();
+  for (std::size_t k = pair.run_begin; k < pair.run_end; ++k) {
+    const SphereContact& c = contacts_[k].contact;
+    touched += fixed.tree.sphere(a_fixed ? c.node_a : c.node_b).center;
+  }
+  touched /= static_cast<double>(pair.run_end - pair.run_begin);
+  const Eigen::Vector3d moving_center = (a_fixed ? b : a).tree.sphere(0).center;
+  return a_fixed ? Eigen::Vector3d(touched - moving_center)
+                 : Eigen::Vector3d(moving_center - touched);
+}
+
+void Scene::collectPushes(const ResolvingPair& pair) {
+  for (std::size_t k = pair.run_begin; k < pair.run_end; ++k) {
+    const SphereContact& c = contacts_[k].contact;
+    ContactPush push;
+    push.node_a = c.node_a;
+    push.node_b = c.node_b;
+    push.points_a = pair.a.tree.node(c.node_a).point_count;
+    push.points_b = pair.b.tree.node(c.node_b).point_count;
+    const bool pushed = pair.one_side_fixed ? pushFromFixedPlane(pair, c, push)
+                                            : pushBetweenDynamic(pair, c, push);
+    if (pushed) pushes_.push_back(push);
+  }
+}
+
+// Against a fixed object: its node's plane, oriented towards the dynamic object, and the
+// deepest point's signed distance. Unlike the distance to the nearest point, that depth
+// does not shrink or flip when points have passed a thin layer such as a floor.
+bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c,
+                               ContactPush& push) {
+  const bool a_fixed = !pair.a.dynamic();
+  Object& fixed = a_fixed ? pair.a : pair.b;
+  const Object& moving = a_fixed ? pair.b : pair.a;
+  const std::uint32_t fixed_node = a_fixed ? c.node_a : c.node_b;
+  const SphereNode& node = moving.tree.node(a_fixed ? c.node_b : c.node_a);
+  const int cluster = std::max(0, fixed.tree.node(fixed_node).cluster);
+  Eigen::Vector3d away =
+      fixed.body.deformation(cluster).rotation * fixed.planes.normals[fixed_node];
+  const Eigen::Vector3d plane_point = fixed.tree.sphere(fixed_node).center;
+  double surface = fixed.planes.extent_along[fixed_node];
+  if (away.dot(a_fixed ? Eigen::Vector3d(-pair.side_of_a) : pair.side_of_a) < 0.0) {
+    away = -away;
+    surface = fixed.planes.extent_against[fixed_node];
+  }
+  // Pairs resolved before this one may have moved the object already.
+  double lowest = moving.translation.dot(away);
+  double deepest = std::numeric_limits<double>::infinity();
+  const auto& positions = moving.body.positions();
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    deepest = std::min(deepest, (positions[moving.tree.pointIndices()[s]] - plane_point).dot(away));
+  }
+  lowest += deepest;
+  const double depth = surface + 0.5 * config_.contact_distance_m - lowest;
+  if (depth <= 0.0) return false;
+  push.normal = a_fixed ? Eigen::Vector3d(-away) : away;
+  push.depth_a = a_fixed ? 0.0 : depth;
+  push.depth_b = a_fixed ? depth : 0.0;
+  return true;
+}
+
+// Two dynamic nodes, along the pair's normal, the depth shared by inverse mass. At the
+// leaves the depth is how far b's points reach past a's along the normal: the nearest
+// pair's distance says nothing of how deep two clouds have passed into each other (it stays
+// below the point spacing however deep), and piles would sink into themselves. Above the
+// leaves, spheres stand for their points (the query's depth).
+bool Scene::pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& c,
+                               ContactPush& push) const {
+  const Object& a = pair.a;
+  const Object& b = pair.b;
+  push.normal = pair.dynamic_normal;
+  const double overlap = pair.leaves ? b.pair_nodes.reach_of_node[c.node_b] +
+                                           a.pair_nodes.reach_of_node[c.node_a] +
+                                           config_.contact_distance_m
+                                     : c.depth_m;
+  const double depth = overlap - 0.5 * config_.contact_distance_m -
+                       (a.translation - b.translation).dot(push.normal);
+  if (depth <= 0.0) return false;
+  // Shared by inverse node mass: a's share is b's node mass over both; the object nearer
+  // to a support does not move (shock propagation).
+  const double mass_a = a.body.pointMassKg() * push.points_a;
+  const double mass_b = b.body.pointMassKg() * push.points_b;
+  const double share_of_a = a.support_depth < b.support_depth   ? 0.0
+                            : b.support_depth < a.support_depth ? 1.0
+                                                                : mass_b / (mass_a + mass_b);
+  push.depth_a = depth * share_of_a;
+  push.depth_b = depth - push.depth_a;
+  return true;
+}
+
+// Each object moves by the mean push of its contact nodes, weighted by their points. A
+// stiff object cannot dent, so it moves to clear more of its deepest node: the mean push
+// for a soft one (the rest is dented), all of the deepest for a rigid one.
+void Scene::moveByMeanPush(ResolvingPair& pair) {
+  Eigen::Vector3d mean_a = Eigen::Vector3d::Zero();
+  Eigen::Vector3d mean_b = Eigen::Vector3d::Zero();
+  double weight_a = 0.0;
+  double weight_b = 0.0;
+  Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
+  for (const ContactPush& push : pushes_) {
+    mean_a += push.points_a * push.depth_a * push.normal;
+    mean_b -= push.points_b * push.depth_b * push.normal;
+    weight_a += push.points_a;
+    weight_b += push.points_b;
+    normal_sum += (push.depth_a + push.depth_b) * push.normal;
+  }
+  mean_a /= weight_a;
+  mean_b /= weight_b;
+  double deepest_a = 0.0;
+  double deepest_b = 0.0;
+  for (const ContactPush& push : pushes_) {
+    deepest_a = std::max(deepest_a, push.depth_a - mean_a.dot(push.normal));
+    deepest_b = std::max(deepest_b, push.depth_b + mean_b.dot(push.normal));
+  }
+  const Eigen::Vector3d pair_direction = normal_sum.normalized();
+  if (pair.a.dynamic()) mean_a += pair.a.config.shape.stiffness * deepest_a * pair_direction;
+  if (pair.b.dynamic()) mean_b -= pair.b.config.shape.stiffness * deepest_b * pair_direction;
+  pair.move_a = mean_a;
+  pair.move_b = mean_b;
+  pair.normal_sum = normal_sum;
+}
+
+void Scene::queueDents(const ResolvingPair& pair) {
+  Object& a = pair.a;
+  Object& b = pair.b;
+  for (const ContactPush& push : pushes_) {
+    if (a.dynamic() && push.depth_a > 0.0) {
+      a.dents.add(push.node_a, push.normal,
+                  push.depth_a + pair.translation_before_a.dot(push.normal), pair.index_b,
+                  pair_serial_);
+    }
+    if (b.dynamic() && push.depth_b > 0.0) {
+      b.dents.add(push.node_b, -push.normal,
+                  push.depth_b - pair.translation_before_b.dot(push.normal), pair.index_a,
+                  pair_serial_);
+    }
+  }
+}
+
+void Scene::rememberSide(const ResolvingPair& pair, const Eigen::Vector3d& normal) {
+  Object& remembering = pair.a.dynamic() ? pair.a : pair.b;
+  const bool is_a = &remembering == &pair.a;
+  remembering.contact_memory.remember(is_a ? pair.index_b : pair.index_a,
+                                      is_a ? normal : Eigen::Vector3d(-normal), cycle_count_);
+}
+
+// Gauss-Seidel over the pairs: each sees the velocity changes of the pairs before it; a
+// Jacobi sweep stops an object resting on two others twice, and piles explode.
+void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& normal) {
+  Object& a = pair.a;
+  Object& b = pair.b;
+  const Eigen::Vector3d velocity_a =
+      a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d velocity_b =
+      b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d change = stopApproach(velocity_a - velocity_b, normal, config_.friction);
+  // Shock propagation (Guendelman et al. 2003): of two touching objects, the one nearer to
+  // a fixed support acts as fixed, so that pushes never drive an object into what carries
+  // it, such as the bottom of a pile into the floor or a wall.
+  const double inverse_mass_a =
+      a.dynamic() && a.support_depth >= b.support_depth ? 1.0 / a.body.config().mass_kg : 0.0;
+  const double inverse_mass_b =
+      b.dynamic() && b.support_depth >= a.support_depth ? 1.0 / b.body.config().mass_kg : 0.0;
+  const double share_a = inverse_mass_a / (inverse_mass_a + inverse_mass_b);
+  holdStaticFriction(pair, normal, share_a);
+  if (a.dynamic()) {
+    a.translation += pair.move_a;
+    a.velocity_change += share_a * change;
+  }
+  if (b.dynamic()) {
+    b.translation += pair.move_b;
+    b.velocity_change -= (1.0 - share_a) * change;
+  }
+}
+
+// Static friction on the positions: what the pair slid across its normal over the cycle,
+// the step and every push so far, is taken back while it is inside the friction cone of
+// this push. A resting object is pushed back each cycle by what gravity moved it, along
+// normals that are never exact (fitted planes, nearest point pairs); without this it walks
+// sideways, by a normal's tilt times g h^2 per cycle. Sliding contacts are left to the
+// velocity friction. Only where one side holds (fixed, or nearer to a support): between two
+// objects carried alike, taking the slip back moves both against supports this pass does
+// not see, and a bar leaning on a ball would lift the ball off the floor.
+void Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
+                               double share_a) const {
+  const Object& a = pair.a;
+  const Object& b = pair.b;
+  const Eigen::Vector3d step_a =
+      a.dynamic() ? Eigen::Vector3d(config_.dt_s * a.body.meanVelocity()) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d step_b =
+      b.dynamic() ? Eigen::Vector3d(config_.dt_s * b.body.meanVelocity()) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d moved = (step_a + pair.translation_before_a + pair.move_a) -
+                                (step_b + pair.translation_before_b + pair.move_b);
+  const Eigen::Vector3d slip = moved - moved.dot(normal) * normal;
+  const double pressed = (pair.move_a - pair.move_b).dot(normal);
+  const bool one_side_holds = share_a == 0.0 || share_a == 1.0;
+  if (one_side_holds && slip.norm() <= config_.friction * pressed) {
+    pair.move_a -= share_a * slip;
+    pair.move_b += (1.0 - share_a) * slip;
+  }
+}
+
+}  // namespace deformable_collision
