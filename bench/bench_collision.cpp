@@ -18,7 +18,7 @@
 #include "bench/bench_common.h"
 #include "bench/s1_methods.h"
 #include "deformable_collision/core/collision_query.h"
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace dc = deformable_collision;
 namespace db = deformable_collision::bench;

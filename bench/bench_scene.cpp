@@ -31,7 +31,7 @@
 
 #include "bench/bench_common.h"
 #include "deformable_collision/core/bounding_sphere.h"
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace dc = deformable_collision;

@@ -4,7 +4,7 @@
 #include <benchmark/benchmark.h>
 
 #include "deformable_collision/core/shape_matching.h"
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace dc = deformable_collision;
 

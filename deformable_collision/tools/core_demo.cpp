@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 
 namespace dc = deformable_collision;
 

@@ -1,4 +1,4 @@
-// Publishes a built-in scene (deformable_collision/core/demo_scenes.h) as one PointCloud2
+// Publishes a built-in scene (deformable_collision/scenes/demo_scenes.h) as one PointCloud2
 // per object on <object>/points, and the frames of its kinematic objects on tf: the input
 // of the demo and of the node's tests. With ~simulate the scene is stepped and every cloud
 // shows the current points (for objects the node tracks); otherwise the points as they are
@@ -10,7 +10,7 @@
 #include <boost/make_shared.hpp>
 #include <cmath>
 
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace {

@@ -7,7 +7,7 @@
 #include <functional>
 #include <random>
 
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {

@@ -5,7 +5,7 @@
 #include <random>
 #include <set>
 
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {

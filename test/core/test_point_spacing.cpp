@@ -2,7 +2,7 @@
 
 #include <gtest/gtest.h>
 
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {

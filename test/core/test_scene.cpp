@@ -12,8 +12,8 @@
 #include <set>
 #include <tuple>
 
-#include "deformable_collision/core/demo_scenes.h"
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {

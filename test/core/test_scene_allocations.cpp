@@ -6,7 +6,7 @@
 #include <cstdlib>
 #include <new>
 
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/core/scene.h"
 
 namespace {

@@ -8,7 +8,7 @@
 #include <random>
 #include <string>
 
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {

@@ -7,7 +7,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/contact_service.h"
 
 namespace {

@@ -13,7 +13,7 @@
 
 #include <ros/names.h>
 
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 #include "deformable_collision/ros/node_config.h"
 
 namespace {

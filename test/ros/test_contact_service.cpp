@@ -5,7 +5,7 @@
 #include <cmath>
 #include <string>
 
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 
 namespace deformable_collision {
 namespace {

@@ -7,7 +7,7 @@
 #include <random>
 #include <set>
 
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 
 namespace deformable_collision {
 namespace {

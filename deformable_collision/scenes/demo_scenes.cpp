@@ -1,4 +1,4 @@
-#include "deformable_collision/core/demo_scenes.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -6,7 +6,7 @@
 #include <random>
 #include <stdexcept>
 
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {

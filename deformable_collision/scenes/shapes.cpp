@@ -1,4 +1,4 @@
-#include "deformable_collision/core/shapes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 #include <random>
 
