@@ -32,28 +32,6 @@ Scene::Object::Object(const ObjectConfig& object_config, std::vector<Eigen::Vect
   }
 }
 
-std::optional<ObjectKind> parseObjectKind(const std::string& name) {
-  if (name == "static") return ObjectKind::kStatic;
-  if (name == "kinematic") return ObjectKind::kKinematic;
-  if (name == "tracked") return ObjectKind::kTracked;
-  if (name == "dynamic") return ObjectKind::kDynamic;
-  return std::nullopt;
-}
-
-const char* toString(ObjectKind kind) {
-  switch (kind) {
-    case ObjectKind::kStatic:
-      return "static";
-    case ObjectKind::kKinematic:
-      return "kinematic";
-    case ObjectKind::kTracked:
-      return "tracked";
-    case ObjectKind::kDynamic:
-      return "dynamic";
-  }
-  return "unknown";
-}
-
 Scene::Scene(const SceneConfig& config) : config_(config) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
   std::ostringstream value;

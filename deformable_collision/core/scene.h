@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "deformable_collision/core/collision_query.h"
+#include "deformable_collision/core/enum_names.h"
 #include "deformable_collision/core/shape_matching.h"
 #include "deformable_collision/core/sphere_tree.h"
 
@@ -21,9 +22,16 @@ enum class ObjectKind {
   kDynamic,    ///< Simulated by shape matching and pushed by the collision response.
 };
 
-/// "static", "kinematic", "tracked" or "dynamic"; std::nullopt otherwise.
-std::optional<ObjectKind> parseObjectKind(const std::string& name);
-const char* toString(ObjectKind kind);
+inline constexpr EnumNames<ObjectKind, 4> kObjectKindNames{{{ObjectKind::kStatic, "static"},
+                                                          {ObjectKind::kKinematic, "kinematic"},
+                                                          {ObjectKind::kTracked, "tracked"},
+                                                          {ObjectKind::kDynamic, "dynamic"}}};
+
+/// The kind named `name` (kObjectKindNames); std::nullopt otherwise.
+inline std::optional<ObjectKind> parseObjectKind(const std::string& name) {
+  return parseEnum(kObjectKindNames, name);
+}
+inline const char* toString(ObjectKind kind) { return enumName(kObjectKindNames, kind); }
 
 struct ObjectConfig {
   std::string name;

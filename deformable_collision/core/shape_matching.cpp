@@ -132,25 +132,6 @@ void indexPointSlots(const std::vector<Cluster>& clusters, std::size_t points,
 
 }  // namespace
 
-std::optional<DeformationMode> parseDeformationMode(const std::string& name) {
-  if (name == "rigid") return DeformationMode::kRigid;
-  if (name == "linear") return DeformationMode::kLinear;
-  if (name == "quadratic") return DeformationMode::kQuadratic;
-  return std::nullopt;
-}
-
-const char* toString(DeformationMode mode) {
-  switch (mode) {
-    case DeformationMode::kRigid:
-      return "rigid";
-    case DeformationMode::kLinear:
-      return "linear";
-    case DeformationMode::kQuadratic:
-      return "quadratic";
-  }
-  return "unknown";
-}
-
 ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
                                      const ShapeMatchingConfig& config,
                                      bool use_wide_vectors)

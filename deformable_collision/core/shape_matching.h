@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "deformable_collision/core/enum_names.h"
 #include "deformable_collision/core/wide_vectors.h"
 
 namespace deformable_collision {
@@ -14,9 +15,16 @@ namespace deformable_collision {
 /// The deformation a cluster's goal transform can express (Mueller et al. 2005).
 enum class DeformationMode { kRigid, kLinear, kQuadratic };
 
-/// "rigid", "linear" or "quadratic"; std::nullopt for anything else.
-std::optional<DeformationMode> parseDeformationMode(const std::string& name);
-const char* toString(DeformationMode mode);
+inline constexpr EnumNames<DeformationMode, 3> kDeformationModeNames{
+    {{DeformationMode::kRigid, "rigid"},
+     {DeformationMode::kLinear, "linear"},
+     {DeformationMode::kQuadratic, "quadratic"}}};
+
+/// The mode named `name` (kDeformationModeNames); std::nullopt for anything else.
+inline std::optional<DeformationMode> parseDeformationMode(const std::string& name) {
+  return parseEnum(kDeformationModeNames, name);
+}
+inline const char* toString(DeformationMode mode) { return enumName(kDeformationModeNames, mode); }
 
 /// Shape-matching parameters of one object. Units are SI and named in the field.
 struct ShapeMatchingConfig {

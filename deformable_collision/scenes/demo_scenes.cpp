@@ -139,28 +139,6 @@ void buildGripper(Scene& scene, std::size_t points) {
 
 }  // namespace
 
-std::optional<DemoScene> parseDemoScene(const std::string& name) {
-  for (const auto scene : {DemoScene::kTwoObjects, DemoScene::kPile, DemoScene::kThreeObjects,
-                           DemoScene::kGripper}) {
-    if (name == toString(scene)) return scene;
-  }
-  return std::nullopt;
-}
-
-const char* toString(DemoScene scene) {
-  switch (scene) {
-    case DemoScene::kTwoObjects:
-      return "two_objects";
-    case DemoScene::kPile:
-      return "pile";
-    case DemoScene::kThreeObjects:
-      return "three_objects";
-    case DemoScene::kGripper:
-      return "gripper";
-  }
-  return "unknown";
-}
-
 /// About the point spacing of the scene's objects at the default point count.
 double sceneContactDistance(DemoScene scene) {
   switch (scene) {

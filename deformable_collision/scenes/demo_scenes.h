@@ -4,6 +4,7 @@
 #include <optional>
 #include <string>
 
+#include "deformable_collision/core/enum_names.h"
 #include "deformable_collision/core/scene.h"
 
 namespace deformable_collision {
@@ -16,9 +17,16 @@ enum class DemoScene {
   kGripper,       ///< A soft ball on a floor, squeezed by the two rigid jaws of a gripper.
 };
 
-/// "two_objects", "pile", "three_objects" or "gripper"; std::nullopt otherwise.
-std::optional<DemoScene> parseDemoScene(const std::string& name);
-const char* toString(DemoScene scene);
+inline constexpr EnumNames<DemoScene, 4> kDemoSceneNames{{{DemoScene::kTwoObjects, "two_objects"},
+                                                       {DemoScene::kPile, "pile"},
+                                                       {DemoScene::kThreeObjects, "three_objects"},
+                                                       {DemoScene::kGripper, "gripper"}}};
+
+/// The scene named `name` (kDemoSceneNames); std::nullopt otherwise.
+inline std::optional<DemoScene> parseDemoScene(const std::string& name) {
+  return parseEnum(kDemoSceneNames, name);
+}
+inline const char* toString(DemoScene scene) { return enumName(kDemoSceneNames, scene); }
 
 /// Points in the scene's soft objects when none are asked for: S1 16k, S2 131k, S3 19k in
 /// all three objects, gripper 10k.

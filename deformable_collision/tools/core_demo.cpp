@@ -57,8 +57,8 @@ int main(int argc, char** argv) {
   const std::string name = argc > 1 ? argv[1] : "three_objects";
   const auto kind = dc::parseDemoScene(name);
   if (!kind) {
-    std::fprintf(stderr, "unknown scene '%s': two_objects, pile, three_objects or gripper\n",
-                 name.c_str());
+    std::fprintf(stderr, "unknown scene '%s': %s\n", name.c_str(),
+                 dc::enumNameList(dc::kDemoSceneNames).c_str());
     return 2;
   }
   const int cycles = argc > 2 ? std::atoi(argv[2]) : 300;

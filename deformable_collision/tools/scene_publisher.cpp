@@ -49,7 +49,8 @@ int main(int argc, char** argv) {
 
   const auto scene_kind = deformable_collision::parseDemoScene(scene_name);
   if (!scene_kind) {
-    ROS_FATAL("~scene = '%s' must be two_objects, pile, three_objects or gripper", scene_name.c_str());
+    ROS_FATAL("~scene = '%s' must be %s", scene_name.c_str(),
+              deformable_collision::enumNameList(deformable_collision::kDemoSceneNames).c_str());
     return 1;
   }
   if (!(rate_hz >= 10.0 && rate_hz <= 1000.0) || points < 0 || !(settle_s >= 0.0 && settle_s <= 60.0)) {
