@@ -410,8 +410,7 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
   const std::uint32_t leaf_limit = to_leaves ? kBucketLeaves : 0;
   // Branch-free where the outcome is a coin toss: which pairs end, which are in reach.
   const auto terminal = [level, to_leaves](const NodeState& node) {
-    return to_leaves ? node.leaf_count <= kBucketLeaves
-                     : node.isLeaf() | (static_cast<int>(node.level) >= level);
+    return to_leaves ? node.leaf_count <= kBucketLeaves : endsDescentToLevel(node, level);
   };
   // Pairs are tested before they are stacked, so the stack holds only pairs within reach.
   ++counters.node_pairs_tested;

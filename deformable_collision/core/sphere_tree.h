@@ -70,6 +70,15 @@ struct alignas(64) NodeState {
   std::uint32_t stamp = 0;  ///< The cycle of `sphere`.
 };
 
+/// Whether a descent to `level` ends at `node` (a SphereNode or a NodeState): the node sits
+/// at that level, or is a leaf above it and stands for itself. The nodes where descents
+/// from the root end are the level's cut: every point lies under exactly one of them.
+template <typename Node>
+bool endsDescentToLevel(const Node& node, int level) {
+  // Bitwise or: branch-free in queries, where the outcome is a coin toss.
+  return node.isLeaf() | (static_cast<int>(node.level) >= level);
+}
+
 /// The current spheres of a tree's leaves in leaf order, one array per coordinate, so that
 /// a leaf can be tested against several others at once.
 struct LeafSpheres {

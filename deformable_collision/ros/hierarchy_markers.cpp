@@ -78,7 +78,7 @@ void HierarchyMarkers::build(Scene& scene, int level, const std::vector<SceneCon
       const std::uint32_t n = stack_.back();
       stack_.pop_back();
       const SphereNode& node = tree.node(n);
-      if (node.level < level && !node.isLeaf()) {
+      if (!endsDescentToLevel(node, level)) {
         for (std::uint32_t c = 0; c < node.child_count; ++c) stack_.push_back(node.first_child + c);
         continue;
       }
