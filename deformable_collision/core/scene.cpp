@@ -187,9 +187,9 @@ void Scene::refreshStaleTrees() {
 }
 
 void Scene::setLevel(int level) {
-  if (level < 0 || level > maxLevel()) {
+  if (level < -1 || level > maxLevel()) {
     throw std::out_of_range("level " + std::to_string(level) + " is outside [0, " +
-                            std::to_string(maxLevel()) + "]");
+                            std::to_string(maxLevel()) + "] (-1: the finest)");
   }
   config_.level = level;
 }

@@ -113,8 +113,9 @@ class Scene {
   /// One cycle; its contacts are contacts() and its figures stats().
   void cycle();
 
-  /// Changes the level of the next cycles (no other cost).
-  /// @throw std::out_of_range if level is not in [0, maxLevel()].
+  /// Changes the level of the next cycles (no other cost); -1 is the finest, as in
+  /// SceneConfig, and stays the finest when deeper objects come.
+  /// @throw std::out_of_range if level is not -1 or in [0, maxLevel()].
   void setLevel(int level);
   /// The level in force: the configured one, or maxLevel() for "finest".
   int level() const;

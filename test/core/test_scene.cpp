@@ -432,9 +432,29 @@ TEST(Scene, LevelSwitchesBetweenCyclesAndQueriesLeaveItAlone) {
   scene->cycle();
   EXPECT_EQ(scene->stats().level, scene->maxLevel());
   EXPECT_THROW(scene->setLevel(scene->maxLevel() + 1), std::out_of_range);
-  EXPECT_THROW(scene->setLevel(-1), std::out_of_range);
+  EXPECT_THROW(scene->setLevel(-2), std::out_of_range);
   EXPECT_EQ(scene->level(), scene->maxLevel());
   EXPECT_THROW(scene->contactsAt(0, 99, std::nullopt, finest), std::out_of_range);
+}
+
+TEST(Scene, LevelMinusOneStaysTheFinestWhenDeeperObjectsCome) {
+  const auto add = [](Scene& scene, const std::string& name, std::size_t points) {
+    ObjectConfig object;
+    object.name = name;
+    object.kind = ObjectKind::kStatic;
+    scene.addObject(object, sampleEllipsoid(points, Eigen::Vector3d(0.1, 0.1, 0.1), 1));
+  };
+  Scene finest{SceneConfig{}}, fixed{SceneConfig{}};
+  for (Scene* scene : {&finest, &fixed}) add(*scene, "small", 16);
+  const int shallow = finest.maxLevel();
+  finest.setLevel(0);
+  finest.setLevel(-1);
+  fixed.setLevel(shallow);
+  for (Scene* scene : {&finest, &fixed}) add(*scene, "large", 4000);
+  ASSERT_GT(finest.maxLevel(), shallow);
+  EXPECT_EQ(finest.config().level, -1);
+  EXPECT_EQ(finest.level(), finest.maxLevel());
+  EXPECT_EQ(fixed.level(), shallow) << "a level set by number stays";
 }
 
 // ---------------------------------------------------------------------------------------
