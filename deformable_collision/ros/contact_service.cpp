@@ -25,28 +25,37 @@ bool resolveObject(const std::vector<NamedObject>& objects, const std::string& n
   return false;
 }
 
+static_assert(int{SetLevel::Request::FINEST} == int{GetContacts::Request::FINEST} &&
+                  int{SetLevel::Request::RUNNING} == int{GetContacts::Request::RUNNING},
+              "both services name levels alike");
+
+/// A level a request may name apart from RUNNING: FINEST or one in [0, max_level].
+bool isRequestableLevel(int level, int max_level) {
+  return level == GetContacts::Request::FINEST || (level >= 0 && level <= max_level);
+}
+
+std::string levelOutOfRange(int level, int max_level) {
+  return "level " + std::to_string(level) + " is outside [0, " + std::to_string(max_level) +
+         "] (" + std::to_string(max_level) + ": the leaves; -1: the finest; -2: the running one)";
+}
+
 }  // namespace
 
 void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response) {
+  response.success = false;
+  if (scene.objectCount() == 0) {
+    response.message = "no object has a rest shape yet, so there are no levels: publish clouds first";
+  } else if (request.level != SetLevel::Request::RUNNING &&
+             !isRequestableLevel(request.level, scene.maxLevel())) {
+    response.message = levelOutOfRange(request.level, scene.maxLevel());
+  } else {
+    if (request.level != SetLevel::Request::RUNNING) scene.setLevel(request.level);
+    response.success = true;
+    response.message = "level " + std::to_string(scene.level()) + " of [0, " +
+                       std::to_string(scene.maxLevel()) + "]";
+  }
   response.max_level = static_cast<std::uint8_t>(scene.maxLevel());
   response.level = static_cast<std::uint8_t>(scene.level());
-  if (scene.objectCount() == 0) {
-    response.success = false;
-    response.message = "no object has a rest shape yet, so there are no levels: publish clouds first";
-    return;
-  }
-  if (request.level > scene.maxLevel()) {
-    response.success = false;
-    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
-                       std::to_string(scene.maxLevel()) + "] (" +
-                       std::to_string(scene.maxLevel()) + " is the leaf level)";
-    return;
-  }
-  scene.setLevel(request.level);
-  response.success = true;
-  response.level = static_cast<std::uint8_t>(scene.level());
-  response.message = "level " + std::to_string(scene.level()) + " of [0, " +
-                     std::to_string(scene.maxLevel()) + "]";
 }
 
 void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
@@ -61,13 +70,17 @@ void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
     return;
   }
   const int max_level = scene.maxLevel();
-  if (request.level < -1 || request.level > max_level) {
-    response.message = "level " + std::to_string(request.level) + " is outside [0, " +
-                       std::to_string(max_level) + "] (-1: the current level)";
+  int level = request.level;
+  if (level == GetContacts::Request::RUNNING) {
+    level = scene.level();
+  } else if (level == GetContacts::Request::FINEST) {
+    level = max_level;
+  } else if (!isRequestableLevel(level, max_level)) {
+    response.message = levelOutOfRange(level, max_level);
     return;
   }
-  const int level = request.level == -1 ? scene.level() : request.level;
   response.success = true;
+  response.level = static_cast<std::uint8_t>(level);
   response.contacts.level = static_cast<std::uint8_t>(level);
   if (!a_has_shape || !b_has_shape) {
     response.message = "object '" + (a_has_shape ? request.object_b : request.object_a) +

@@ -23,11 +23,13 @@ struct NamedObject {
 /// fuzzers can put any request to them. A bad request gets success = false and a message
 /// that says what is wrong; it changes nothing.
 
-/// Sets the scene's running level if the request is in [0, maxLevel()].
+/// Sets the scene's running level to the requested one in [0, maxLevel()] or to FINEST
+/// (-1, which stays the finest as deeper objects come); RUNNING (-2) only answers.
 void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response);
 
-/// Contacts of the named objects (empty name: any) at the requested level (-1: the running
-/// one) on the current state; the running level is left alone. `scratch` holds the contacts
+/// Contacts of the named objects (empty name: any) at the requested level (FINEST, -1: the
+/// leaves; RUNNING, -2: the running one) on the current state; the running level is left
+/// alone. `scratch` holds the contacts
 /// between calls so that repeated queries reuse its memory. The caller sets the header.
 void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
                        const GetContacts::Request& request, std::vector<SceneContact>& scratch,

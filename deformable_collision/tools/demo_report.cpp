@@ -74,7 +74,7 @@ int main(int argc, char** argv) {
   if (!ros::ok()) return 1;
 
   deformable_collision::GetContacts query;
-  query.request.level = -1;
+  query.request.level = deformable_collision::GetContacts::Request::RUNNING;
   const bool answered =
       ros::service::call(node + "/get_contacts", query) && query.response.success;
 

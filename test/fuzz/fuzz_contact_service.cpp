@@ -18,7 +18,7 @@ struct Fixture {
   std::unique_ptr<Scene> scene;
   std::vector<NamedObject> objects;
   std::vector<SceneContact> scratch;
-  int initial_level = 0;
+  int initial_level = 0;  ///< As configured: -1 is the finest.
 };
 
 Fixture& fixture() {
@@ -33,7 +33,7 @@ Fixture& fixture() {
       f.objects.push_back({f.scene->objectConfig(i).name, i});
     }
     f.objects.push_back({"late", std::nullopt});
-    f.initial_level = f.scene->level();
+    f.initial_level = f.scene->config().level;
     return f;
   }();
   return built;
@@ -65,14 +65,29 @@ bool known(const Fixture& f, const std::string& name) {
   return false;
 }
 
+std::int16_t requestedLevel(FuzzedDataProvider& input) {
+  return input.ConsumeBool() ? input.ConsumeIntegralInRange<std::int16_t>(-3, 20)
+                             : input.ConsumeIntegral<std::int16_t>();
+}
+
+/// The level a request names on `scene` (FINEST, RUNNING or itself); -3 if out of range.
+int namedLevel(const Scene& scene, int requested) {
+  if (requested == GetContacts::Request::RUNNING) return scene.level();
+  if (requested == GetContacts::Request::FINEST) return scene.maxLevel();
+  return requested >= 0 && requested <= scene.maxLevel() ? requested : -3;
+}
+
 void setLevel(FuzzedDataProvider& input, Fixture& f) {
   SetLevel::Request request;
-  request.level = input.ConsumeIntegral<std::uint8_t>();
+  request.level = requestedLevel(input);
   const int before = f.scene->level();
+  const int expected = namedLevel(*f.scene, request.level);
   SetLevel::Response response;
   answerSetLevel(*f.scene, request, response);
-  check(response.success == (request.level <= f.scene->maxLevel()), "set_level accepted wrongly");
-  check(f.scene->level() == (response.success ? request.level : before), "wrong level in force");
+  check(response.success == (expected >= 0), "set_level accepted wrongly");
+  check(f.scene->level() == (response.success ? expected : before), "wrong level in force");
+  check(request.level != SetLevel::Request::FINEST || f.scene->config().level == -1,
+        "set_level FINEST did not keep to the finest");
   check(response.level == f.scene->level() && response.max_level == f.scene->maxLevel(),
         "set_level reports a level not in force");
   check(!response.message.empty(), "set_level said nothing");
@@ -82,13 +97,13 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
   GetContacts::Request request;
   request.object_a = objectName(input, f);
   request.object_b = objectName(input, f);
-  request.level = input.ConsumeBool() ? input.ConsumeIntegralInRange<std::int16_t>(-2, 20)
-                                      : input.ConsumeIntegral<std::int16_t>();
+  request.level = requestedLevel(input);
   const int running = f.scene->level();
+  const int level = namedLevel(*f.scene, request.level);
   GetContacts::Response response;
   answerGetContacts(*f.scene, f.objects, request, f.scratch, response);
   const bool valid = known(f, request.object_a) && known(f, request.object_b) &&
-                     request.level >= -1 && request.level <= f.scene->maxLevel();
+                     level >= 0;
   check(response.success == valid, "get_contacts accepted wrongly");
   check(f.scene->level() == running, "get_contacts changed the running level");
   check(!response.message.empty(), "get_contacts said nothing");
@@ -96,8 +111,8 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
     check(response.contacts.contacts.empty(), "a refused query returned contacts");
     return;
   }
-  const int level = request.level == -1 ? running : request.level;
-  check(response.contacts.level == level, "contacts of another level");
+  check(response.level == level && response.contacts.level == level,
+        "contacts of another level");
   for (const Contact& contact : response.contacts.contacts) {
     check(request.object_a.empty() || contact.object_a == request.object_a ||
               contact.object_b == request.object_a,

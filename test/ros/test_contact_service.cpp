@@ -42,31 +42,60 @@ class ContactServiceTest : public ::testing::Test {
   std::vector<SceneContact> scratch_;
 };
 
-TEST_F(ContactServiceTest, SetLevelTakesALevelInRangeAndRefusesOthers) {
+TEST_F(ContactServiceTest, SetLevelTakesALevelInRangeOrANamedOneAndRefusesOthers) {
   const int max_level = scene_->maxLevel();
+  constexpr int kUnchanged = -100;
   struct Case {
     const char* name;
     int level;
     bool success;
+    int in_force;  ///< After the call; kUnchanged: the level before it.
   };
-  const Case cases[] = {{"root", 0, true},        {"middle", max_level / 2, true},
-                        {"leaves", max_level, true}, {"one past the leaves", max_level + 1, false},
-                        {"largest uint8", 255, false}};
+  const Case cases[] = {
+      {"root", 0, true, 0},
+      {"middle", max_level / 2, true, max_level / 2},
+      {"running, after a level", SetLevel::Request::RUNNING, true, kUnchanged},
+      {"finest", SetLevel::Request::FINEST, true, max_level},
+      {"running, after finest", SetLevel::Request::RUNNING, true, max_level},
+      {"leaves", max_level, true, max_level},
+      {"one past the leaves", max_level + 1, false, kUnchanged},
+      {"largest uint8", 255, false, kUnchanged},
+      {"largest int16", 32767, false, kUnchanged},
+      {"one below running", -3, false, kUnchanged},
+      {"smallest int16", -32768, false, kUnchanged},
+  };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
     const int before = scene_->level();
     SetLevel::Request request;
-    request.level = static_cast<std::uint8_t>(c.level);
+    request.level = static_cast<std::int16_t>(c.level);
     SetLevel::Response response;
     answerSetLevel(*scene_, request, response);
     EXPECT_EQ(response.success, c.success);
     EXPECT_EQ(response.max_level, max_level);
     EXPECT_EQ(response.level, scene_->level());
-    EXPECT_EQ(scene_->level(), c.success ? c.level : before);
+    EXPECT_EQ(scene_->level(), c.in_force == kUnchanged ? before : c.in_force);
     if (!c.success) {
-      EXPECT_NE(response.message.find("outside [0, "), std::string::npos) << response.message;
+      EXPECT_NE(response.message.find("level " + std::to_string(c.level) + " is outside [0, " +
+                                      std::to_string(max_level) + "]"),
+                std::string::npos)
+          << response.message;
+      EXPECT_NE(response.message.find("-1: the finest; -2: the running one"), std::string::npos)
+          << response.message;
     }
   }
+}
+
+TEST_F(ContactServiceTest, SetLevelFinestIsTheFinestOfTheConfig) {
+  scene_->setLevel(1);
+  SetLevel::Request request;
+  request.level = SetLevel::Request::FINEST;
+  SetLevel::Response response;
+  answerSetLevel(*scene_, request, response);
+  ASSERT_TRUE(response.success) << response.message;
+  // As `level: -1` in the config: the finest also of objects whose trees come later.
+  EXPECT_EQ(scene_->config().level, -1);
+  EXPECT_EQ(response.level, scene_->maxLevel());
 }
 
 TEST(ContactService, SetLevelOnAnEmptySceneSaysWhy) {
@@ -78,18 +107,32 @@ TEST(ContactService, SetLevelOnAnEmptySceneSaysWhy) {
   EXPECT_NE(response.message.find("publish clouds first"), std::string::npos);
 }
 
-TEST_F(ContactServiceTest, GetContactsAtMinusOneAnswersAtTheRunningLevel) {
-  // The state has moved on since the cycle found its contacts (the response pushed the
-  // objects apart), so the answer is compared with an explicit query, not contacts().
-  const GetContacts::Response running = ask("", "", -1);
-  const GetContacts::Response explicit_level = ask("", "", scene_->level());
-  ASSERT_TRUE(running.success) << running.message;
-  EXPECT_EQ(running.contacts.level, scene_->level());
-  EXPECT_FALSE(running.contacts.contacts.empty());
-  EXPECT_EQ(running.contacts.contacts, explicit_level.contacts.contacts);
-  for (const Contact& contact : running.contacts.contacts) {
-    EXPECT_NEAR(std::hypot(contact.normal.x, contact.normal.y, contact.normal.z), 1.0, 1e-9);
-    EXPECT_TRUE(std::isfinite(contact.depth));
+TEST_F(ContactServiceTest, GetContactsAtANamedLevelAnswersAtThatLevel) {
+  scene_->setLevel(1);
+  ASSERT_LT(1, scene_->maxLevel());
+  struct Case {
+    const char* name;
+    int requested;
+    int level;
+  };
+  const Case cases[] = {{"running", GetContacts::Request::RUNNING, 1},
+                        {"finest", GetContacts::Request::FINEST, scene_->maxLevel()}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    // The state has moved on since the cycle found its contacts (the response pushed the
+    // objects apart), so the answer is compared with an explicit query, not contacts().
+    const GetContacts::Response named = ask("", "", c.requested);
+    const GetContacts::Response explicit_level = ask("", "", c.level);
+    ASSERT_TRUE(named.success) << named.message;
+    EXPECT_EQ(named.level, c.level);
+    EXPECT_EQ(named.contacts.level, c.level);
+    EXPECT_FALSE(named.contacts.contacts.empty());
+    EXPECT_EQ(named.contacts.contacts, explicit_level.contacts.contacts);
+    for (const Contact& contact : named.contacts.contacts) {
+      EXPECT_NEAR(std::hypot(contact.normal.x, contact.normal.y, contact.normal.z), 1.0, 1e-9);
+      EXPECT_TRUE(std::isfinite(contact.depth));
+    }
+    EXPECT_EQ(scene_->level(), 1);
   }
 }
 
@@ -120,9 +163,10 @@ TEST_F(ContactServiceTest, GetContactsRefusesBadRequestsSayingWhy) {
   const Case cases[] = {
       {"unknown a", "plum", "", -1, "unknown object 'plum'; the objects are: "},
       {"unknown b", "fruit", "Fruit", -1, "unknown object 'Fruit'"},
-      {"level below -1", "", "", -2, "level -2 is outside [0, "},
-      {"level past the leaves", "", "", max_level + 1, "(-1: the current level)"},
+      {"level below running", "", "", -3, "level -3 is outside [0, "},
+      {"level past the leaves", "", "", max_level + 1, "-1: the finest; -2: the running one)"},
       {"largest int16", "", "", 32767, "level 32767 is outside"},
+      {"smallest int16", "", "", -32768, "level -32768 is outside"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);

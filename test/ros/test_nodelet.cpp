@@ -89,11 +89,12 @@ class NodeletTest : public ::testing::Test {
     })) << "the objects did not arrive";
     ASSERT_TRUE(ros::service::waitForService(kNode + "/set_level", ros::Duration(kTimeoutS)));
     ASSERT_TRUE(ros::service::waitForService(kNode + "/get_contacts", ros::Duration(kTimeoutS)));
-    SetLevel finest;
-    finest.request.level = 255;
-    ASSERT_TRUE(ros::service::call(kNode + "/set_level", finest));
-    max_level_ = finest.response.max_level;
-    setLevel(max_level_);
+    SetLevel running;
+    running.request.level = SetLevel::Request::RUNNING;
+    ASSERT_TRUE(ros::service::call(kNode + "/set_level", running));
+    ASSERT_TRUE(running.response.success) << running.response.message;
+    max_level_ = running.response.max_level;
+    setLevel(SetLevel::Request::FINEST);
   }
 
   /// Whether the last ~deformed/probe holds `points` (float32 as published).
@@ -111,12 +112,15 @@ class NodeletTest : public ::testing::Test {
     return true;
   }
 
-  void setLevel(int level) {
+  /// Sets a level in [0, max_level_] or the finest, and waits for a cycle at it.
+  void setLevel(int requested) {
+    const int level = requested == SetLevel::Request::FINEST ? max_level_ : requested;
     SetLevel call;
-    call.request.level = static_cast<std::uint8_t>(level);
+    call.request.level = static_cast<std::int16_t>(requested);
     ASSERT_TRUE(ros::service::call(kNode + "/set_level", call));
     ASSERT_TRUE(call.response.success) << call.response.message;
     ASSERT_EQ(call.response.level, level);
+    ASSERT_EQ(call.response.max_level, max_level_);
     // Contacts of a cycle at the new level.
     contacts_.reset();
     ASSERT_TRUE(waitFor([&] { return contacts_ && contacts_->level == level; }));
@@ -162,21 +166,49 @@ TEST_F(NodeletTest, PublishesContactsBetweenTouchingObjects) {
 
 TEST_F(NodeletTest, SetLevelAnswersGoodAndBadRequests) {
   setLevel(1);
-  SetLevel bad;
-  bad.request.level = static_cast<std::uint8_t>(max_level_ + 1);
-  ASSERT_TRUE(ros::service::call(kNode + "/set_level", bad));
-  EXPECT_FALSE(bad.response.success);
-  EXPECT_NE(bad.response.message.find("outside [0, " + std::to_string(max_level_) + "]"),
-            std::string::npos) << bad.response.message;
-  EXPECT_EQ(bad.response.level, 1) << "a refused request leaves the level alone";
-  EXPECT_EQ(bad.response.max_level, max_level_);
+  for (const int level : {max_level_ + 1, 32767, -3, -32768}) {
+    SCOPED_TRACE(level);
+    SetLevel bad;
+    bad.request.level = static_cast<std::int16_t>(level);
+    ASSERT_TRUE(ros::service::call(kNode + "/set_level", bad));
+    EXPECT_FALSE(bad.response.success);
+    EXPECT_NE(bad.response.message.find("level " + std::to_string(level) + " is outside [0, " +
+                                        std::to_string(max_level_) + "]"),
+              std::string::npos) << bad.response.message;
+    EXPECT_EQ(bad.response.level, 1) << "a refused request leaves the level alone";
+    EXPECT_EQ(bad.response.max_level, max_level_);
+  }
+  SetLevel running;
+  running.request.level = SetLevel::Request::RUNNING;
+  ASSERT_TRUE(ros::service::call(kNode + "/set_level", running));
+  EXPECT_TRUE(running.response.success) << running.response.message;
+  EXPECT_EQ(running.response.level, 1);
+  EXPECT_EQ(running.response.max_level, max_level_);
   contacts_.reset();
   ASSERT_TRUE(waitFor([this] { return contacts_ != nullptr; }));
   EXPECT_EQ(contacts_->level, 1);
+  setLevel(SetLevel::Request::FINEST);
+}
+
+TEST_F(NodeletTest, GetContactsNamesTheFinestAndTheRunningLevel) {
+  setLevel(1);
+  const GetContacts running = getContacts("probe", "floor", GetContacts::Request::RUNNING);
+  ASSERT_TRUE(running.response.success) << running.response.message;
+  EXPECT_EQ(running.response.level, 1);
+  EXPECT_EQ(running.response.contacts.level, 1);
+  EXPECT_FALSE(running.response.contacts.contacts.empty());
+  const GetContacts finest = getContacts("probe", "floor", GetContacts::Request::FINEST);
+  ASSERT_TRUE(finest.response.success) << finest.response.message;
+  EXPECT_EQ(finest.response.level, max_level_);
+  EXPECT_EQ(finest.response.contacts.level, max_level_);
+  EXPECT_FALSE(finest.response.contacts.contacts.empty());
+  contacts_.reset();
+  ASSERT_TRUE(waitFor([this] { return contacts_ != nullptr; }));
+  EXPECT_EQ(contacts_->level, 1) << "a query at the finest level changed the running level";
 }
 
 TEST_F(NodeletTest, GetContactsAnswersAtAnyLevelAndLeavesTheRunningOneAlone) {
-  const GetContacts current = getContacts("probe", "floor", -1);
+  const GetContacts current = getContacts("probe", "floor", GetContacts::Request::RUNNING);
   ASSERT_TRUE(current.response.success) << current.response.message;
   EXPECT_EQ(current.response.contacts.level, max_level_);
   ASSERT_FALSE(current.response.contacts.contacts.empty());
@@ -197,7 +229,7 @@ TEST_F(NodeletTest, GetContactsAnswersAtAnyLevelAndLeavesTheRunningOneAlone) {
   }
   EXPECT_EQ(partners.size(), roots.response.contacts.contacts.size()) << "one contact per pair";
   EXPECT_EQ(partners.count("probe"), 1u);
-  const GetContacts untouched = getContacts("ball", "", -1);
+  const GetContacts untouched = getContacts("ball", "", GetContacts::Request::FINEST);
   EXPECT_TRUE(untouched.response.success);
   EXPECT_TRUE(untouched.response.contacts.contacts.empty());
 
@@ -213,13 +245,14 @@ TEST_F(NodeletTest, GetContactsAnswersAtAnyLevelAndLeavesTheRunningOneAlone) {
   for (const BadRequest& request : {BadRequest{"nothing", "", -1, "unknown object 'nothing'"},
                                     BadRequest{"probe", "Floor", -1, "unknown object 'Floor'"},
                                     BadRequest{"", "", max_level_ + 1, "outside"},
-                                    BadRequest{"", "", -2, "level -2"}}) {
+                                    BadRequest{"", "", -3, "level -3 is outside"}}) {
     const GetContacts answer = getContacts(request.a, request.b, request.level);
     EXPECT_FALSE(answer.response.success) << request.expected;
     EXPECT_NE(answer.response.message.find(request.expected), std::string::npos)
         << answer.response.message;
   }
-  EXPECT_TRUE(getContacts("", "", -1).response.success) << "the node goes on answering";
+  EXPECT_TRUE(getContacts("", "", GetContacts::Request::RUNNING).response.success)
+      << "the node goes on answering";
 }
 
 TEST_F(NodeletTest, MalformedCloudsLeaveTheNodeRunningAndItsStateIntact) {
@@ -268,7 +301,7 @@ TEST_F(NodeletTest, MalformedCloudsLeaveTheNodeRunningAndItsStateIntact) {
   deformed_["probe"].clear();
   ASSERT_TRUE(waitFor([this] { return !deformed_["probe"].empty(); }));
   EXPECT_TRUE(probeAt(probePoints())) << "the probe moved";
-  const GetContacts answer = getContacts("probe", "floor", -1);
+  const GetContacts answer = getContacts("probe", "floor", GetContacts::Request::FINEST);
   EXPECT_TRUE(answer.response.success);
   EXPECT_FALSE(answer.response.contacts.contacts.empty());
 }
@@ -278,7 +311,7 @@ TEST_F(NodeletTest, TrackedCloudsMoveTheObjectAndItsContacts) {
   for (auto& p : lifted) p.z() += 0.2;
   inputs_["probe"].publish(cloudOf(lifted, "world"));
   ASSERT_TRUE(waitFor([&] { return probeAt(lifted); }));
-  const GetContacts answer = getContacts("probe", "", -1);
+  const GetContacts answer = getContacts("probe", "", GetContacts::Request::FINEST);
   ASSERT_TRUE(answer.response.success) << answer.response.message;
   EXPECT_TRUE(answer.response.contacts.contacts.empty());
 }
