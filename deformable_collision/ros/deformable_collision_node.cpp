@@ -23,7 +23,10 @@ NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
     throw std::invalid_argument("no parameters under " + private_handle.getNamespace() +
                                 ": load a config (see config/demo.yaml)");
   }
-  return parseNodeConfig(params);
+  std::vector<std::string> warnings;
+  NodeConfig config = parseNodeConfig(params, warnings);
+  for (const std::string& warning : warnings) ROS_WARN("%s", warning.c_str());
+  return config;
 }
 
 /// The transform as an isometry; std::nullopt unless it is finite with a unit-length

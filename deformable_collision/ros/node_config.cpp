@@ -125,6 +125,20 @@ class ParamReader {
     return v;
   }
 
+  /// The key to read a renamed parameter from: `key`, or `old_key` (the name before units
+  /// were part of it) with one warning in `warnings`, so that older configs still load.
+  std::string renamed(const std::string& key, const std::string& old_key,
+                      std::vector<std::string>& warnings) {
+    used_.insert(old_key);
+    if (!params_.hasMember(old_key)) return key;
+    if (params_.hasMember(key)) {
+      fail(name(old_key), "is the deprecated name of " + name(key) +
+                              ", which is set too: keep only " + name(key));
+    }
+    warnings.push_back("parameter " + name(old_key) + " is deprecated: rename it " + name(key));
+    return old_key;
+  }
+
   /// Throws for the first key that was never asked for.
   void finish() {
     for (auto it = params_.begin(); it != params_.end(); ++it) {
@@ -248,7 +262,7 @@ const char* toString(OnCloud on_cloud) {
   return "unknown";
 }
 
-NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params) {
+NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::string>& warnings) {
   ParamReader read(params, "");
   NodeConfig config;
   config.fixed_frame = read.text("fixed_frame", config.fixed_frame);
@@ -263,8 +277,9 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params) {
 
   config.tf_wait_s = read.number("tf_wait_s", config.tf_wait_s, 0.0, 60.0);
   SceneConfig& scene = config.scene;
-  scene.dt_s = read.number("dt", scene.dt_s, 0.0, 0.1, true);
-  scene.gravity_mps2 = read.vector3("gravity", scene.gravity_mps2);
+  scene.dt_s = read.number(read.renamed("dt_s", "dt", warnings), scene.dt_s, 0.0, 0.1, true);
+  scene.gravity_mps2 =
+      read.vector3(read.renamed("gravity_mps2", "gravity", warnings), scene.gravity_mps2);
   scene.level = static_cast<int>(read.integer("level", scene.level, -1, 255));
   scene.contact_distance_m =
       read.number("contact_distance_m", scene.contact_distance_m, 0.0, 1e6, true);

@@ -40,15 +40,16 @@ struct NodeConfig {
   /// or not yet at all) before it is dropped with a warning.
   double tf_wait_s = 0.5;
   bool markers_colliding_only = false;
-  SceneConfig scene;  ///< dt, gravity, level, contact_distance_m, friction, tree.
+  SceneConfig scene;  ///< dt_s, gravity_mps2, level, contact_distance_m, friction, tree.
   std::vector<ObjectParams> objects;
 };
 
 /// Fills a NodeConfig from the node's private parameters (a struct, as returned by
 /// getParam on the private namespace), checking every value before anything is used.
 /// Unknown keys are errors, so that a misspelt parameter is not silently replaced by its
-/// default.
+/// default. A key given by its deprecated name (dt, gravity) is read with one line in
+/// `warnings` naming the new key; both names at once are an error.
 /// @throw std::invalid_argument whose message names the parameter and says what is wrong.
-NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params);
+NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::string>& warnings);
 
 }  // namespace deformable_collision

@@ -10,6 +10,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <ros/names.h>
 
@@ -20,9 +21,11 @@ namespace {
 
 using XmlRpc::XmlRpcValue;
 
-const char* const kTopKeys[] = {"fixed_frame", "rate_hz", "max_points_per_object", "dt",
-                                "gravity", "level", "contact_distance_m", "friction",
-                                "tree", "markers", "objects", "rate"};
+// dt and gravity are the deprecated names of dt_s and gravity_mps2.
+const char* const kTopKeys[] = {"fixed_frame", "rate_hz", "max_points_per_object", "dt_s",
+                                "gravity_mps2", "dt", "gravity", "level",
+                                "contact_distance_m", "friction", "tree", "markers", "objects",
+                                "rate"};
 const char* const kObjectKeys[] = {"name", "topic", "follow_frame", "dynamic", "on_cloud",
                                    "mode", "clusters", "stiffness", "beta", "damping",
                                    "mass_kg", "preserve_volume", "cluster_overlap_ratio",
@@ -110,7 +113,7 @@ XmlRpcValue validConfiguration() {
   gravity[0] = 0.0;
   gravity[1] = 0.0;
   gravity[2] = -9.81;
-  params["gravity"] = gravity;
+  params["gravity_mps2"] = gravity;
   params["objects"].setSize(2);
   params["objects"][0] = object("ball", "ball/points");
   params["objects"][1] = object("floor", "floor/points");
@@ -140,8 +143,8 @@ void checkAccepted(const deformable_collision::NodeConfig& config) {
   check(!config.fixed_frame.empty() && config.fixed_frame[0] != '/', "fixed_frame");
   check(config.rate_hz > 0 && std::isfinite(config.rate_hz), "rate_hz");
   check(config.max_points_per_object >= 1, "max_points_per_object");
-  check(config.scene.dt_s > 0 && config.scene.dt_s <= 0.1, "dt");
-  check(config.scene.gravity_mps2.allFinite(), "gravity");
+  check(config.scene.dt_s > 0 && config.scene.dt_s <= 0.1, "dt_s");
+  check(config.scene.gravity_mps2.allFinite(), "gravity_mps2");
   check(config.scene.contact_distance_m > 0 && std::isfinite(config.scene.contact_distance_m),
         "contact_distance_m");
   check(!config.objects.empty(), "objects");
@@ -208,12 +211,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t siz
     }
   }
   deformable_collision::NodeConfig config;
+  std::vector<std::string> warnings;
   try {
-    config = deformable_collision::parseNodeConfig(params);
+    config = deformable_collision::parseNodeConfig(params, warnings);
   } catch (const std::invalid_argument& e) {
     check(std::string(e.what()).rfind("parameter ", 0) == 0, "an error that names no parameter");
     return 0;
   }
+  const std::size_t deprecated_keys = params.hasMember("dt") + params.hasMember("gravity");
+  check(warnings.size() == deprecated_keys, "not one warning per deprecated key");
   checkAccepted(config);
   return 0;
 }

@@ -4,6 +4,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace deformable_collision {
 namespace {
@@ -22,13 +23,13 @@ XmlRpcValue validParams() {
   XmlRpcValue params;
   params["fixed_frame"] = "odom";
   params["rate_hz"] = 50;  // an integer where a number is expected must be accepted
-  params["dt"] = 0.02;
+  params["dt_s"] = 0.02;
   params["level"] = 3;
   params["contact_distance_m"] = 0.01;
   params["max_points_per_object"] = 5000;
-  params["gravity"][0] = 0.0;
-  params["gravity"][1] = 0.0;
-  params["gravity"][2] = -1.62;
+  params["gravity_mps2"][0] = 0.0;
+  params["gravity_mps2"][1] = 0.0;
+  params["gravity_mps2"][2] = -1.62;
   params["markers"]["colliding_only"] = true;
   XmlRpcValue& objects = params["objects"];
   objects[0] = object("floor", "/floor/points");
@@ -49,8 +50,16 @@ XmlRpcValue validParams() {
   return params;
 }
 
+/// parseNodeConfig of parameters that use no deprecated key.
+NodeConfig parseWithoutWarnings(const XmlRpcValue& params) {
+  std::vector<std::string> warnings;
+  NodeConfig config = parseNodeConfig(params, warnings);
+  EXPECT_TRUE(warnings.empty()) << warnings.front();
+  return config;
+}
+
 TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
-  const NodeConfig config = parseNodeConfig(validParams());
+  const NodeConfig config = parseWithoutWarnings(validParams());
   EXPECT_EQ(config.fixed_frame, "odom");
   EXPECT_DOUBLE_EQ(config.rate_hz, 50.0);
   EXPECT_DOUBLE_EQ(config.scene.dt_s, 0.02);
@@ -81,7 +90,7 @@ TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
 TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
   XmlRpcValue params;
   params["objects"][0] = object("ball", "ball/points");
-  const NodeConfig config = parseNodeConfig(params);
+  const NodeConfig config = parseWithoutWarnings(params);
   const NodeConfig defaults;
   EXPECT_EQ(config.fixed_frame, defaults.fixed_frame);
   EXPECT_DOUBLE_EQ(config.rate_hz, defaults.rate_hz);
@@ -102,7 +111,8 @@ TEST_P(BadParamTest, ThrowsNamingTheParameter) {
   XmlRpcValue params = validParams();
   GetParam().spoil(params);
   try {
-    parseNodeConfig(params);
+    std::vector<std::string> warnings;
+    parseNodeConfig(params, warnings);
     FAIL() << "accepted";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find(GetParam().expected), std::string::npos) << e.what();
@@ -115,12 +125,12 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"NotADictionary", [](XmlRpcValue& p) { p = XmlRpcValue(3); }, "dictionary"},
         BadParamCase{"ZeroRate", [](XmlRpcValue& p) { p["rate_hz"] = 0.0; }, "rate_hz = 0"},
         BadParamCase{"RateAsString", [](XmlRpcValue& p) { p["rate_hz"] = "fast"; }, "rate_hz must be a number"},
-        BadParamCase{"LargeStep", [](XmlRpcValue& p) { p["dt"] = 0.5; }, "dt = 0.5"},
+        BadParamCase{"LargeStep", [](XmlRpcValue& p) { p["dt_s"] = 0.5; }, "dt_s = 0.5"},
         BadParamCase{"LevelBelowMinusOne", [](XmlRpcValue& p) { p["level"] = -2; }, "level = -2"},
         BadParamCase{"LevelNotInteger", [](XmlRpcValue& p) { p["level"] = 2.5; }, "level must be an integer"},
         BadParamCase{"NegativeContactDistance", [](XmlRpcValue& p) { p["contact_distance_m"] = -0.1; }, "contact_distance_m"},
         BadParamCase{"GravityOfTwo", [](XmlRpcValue& p) {
-          XmlRpcValue two; two[0] = 0.0; two[1] = -9.81; p["gravity"] = two; }, "gravity must be a list of 3"},
+          XmlRpcValue two; two[0] = 0.0; two[1] = -9.81; p["gravity_mps2"] = two; }, "gravity_mps2 must be a list of 3"},
         BadParamCase{"EmptyFrame", [](XmlRpcValue& p) { p["fixed_frame"] = ""; }, "fixed_frame is empty"},
         BadParamCase{"SlashedFrame", [](XmlRpcValue& p) { p["fixed_frame"] = "/world"; }, "fixed_frame = '/world'"},
         BadParamCase{"SlashedFollowFrame", [](XmlRpcValue& p) { p["objects"][2]["follow_frame"] = "/link"; }, "objects[2].follow_frame = '/link'"},
@@ -148,6 +158,101 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"DeformingFollower", [](XmlRpcValue& p) { p["objects"][2]["mode"] = "linear"; }, "objects[2].mode = 'linear'"},
         BadParamCase{"DynamicAsString", [](XmlRpcValue& p) { p["objects"][1]["dynamic"] = "yes"; }, "objects[1].dynamic must be true or false"}),
     [](const auto& info) { return info.param.name; });
+
+/// A copy of a dictionary without `key` (XmlRpcValue cannot erase a member).
+XmlRpcValue without(const XmlRpcValue& dictionary, const std::string& key) {
+  XmlRpcValue kept;
+  for (auto it = dictionary.begin(); it != dictionary.end(); ++it) {
+    if (it->first != key) kept[it->first] = it->second;
+  }
+  return kept;
+}
+
+XmlRpcValue vector3(double x, double y, double z) {
+  XmlRpcValue v;
+  v[0] = x;
+  v[1] = y;
+  v[2] = z;
+  return v;
+}
+
+/// A parameter renamed to carry its unit, given by its new name, its old one or both.
+struct RenamedKeyCase {
+  std::string name;
+  std::string key;
+  std::string old_key;
+  bool new_given;
+  bool old_given;
+  XmlRpcValue value;
+  std::function<bool(const NodeConfig&)> holds_value;
+  std::string warning;  ///< The one warning expected; empty: none.
+  std::string error;    ///< Expected in the exception; empty: accepted.
+};
+
+class RenamedKeyTest : public ::testing::TestWithParam<RenamedKeyCase> {};
+
+TEST_P(RenamedKeyTest, NewKeyReadsOldKeyWarnsBothAreAnError) {
+  const RenamedKeyCase& c = GetParam();
+  XmlRpcValue params = without(without(validParams(), c.key), c.old_key);
+  if (c.new_given) params[c.key] = c.value;
+  if (c.old_given) params[c.old_key] = c.value;
+  std::vector<std::string> warnings;
+  if (!c.error.empty()) {
+    try {
+      parseNodeConfig(params, warnings);
+      FAIL() << "accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(c.error), std::string::npos) << e.what();
+    }
+    return;
+  }
+  const NodeConfig config = parseNodeConfig(params, warnings);
+  EXPECT_TRUE(c.holds_value(config));
+  if (c.warning.empty()) {
+    EXPECT_TRUE(warnings.empty()) << warnings.front();
+  } else {
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_EQ(warnings[0], c.warning);
+  }
+}
+
+bool stepIs003(const NodeConfig& config) { return config.scene.dt_s == 0.03; }
+bool gravityIsLunarX(const NodeConfig& config) {
+  return config.scene.gravity_mps2 == Eigen::Vector3d(-1.62, 0.0, 0.0);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    NodeConfig, RenamedKeyTest,
+    ::testing::Values(
+        RenamedKeyCase{"StepByItsName", "dt_s", "dt", true, false, 0.03, stepIs003, "", ""},
+        RenamedKeyCase{"StepByItsOldName", "dt_s", "dt", false, true, 0.03, stepIs003,
+                       "parameter dt is deprecated: rename it dt_s", ""},
+        RenamedKeyCase{"StepByBothNames", "dt_s", "dt", true, true, 0.03, stepIs003, "",
+                       "parameter dt is the deprecated name of dt_s, which is set too: keep only dt_s"},
+        RenamedKeyCase{"GravityByItsName", "gravity_mps2", "gravity", true, false,
+                       vector3(-1.62, 0.0, 0.0), gravityIsLunarX, "", ""},
+        RenamedKeyCase{"GravityByItsOldName", "gravity_mps2", "gravity", false, true,
+                       vector3(-1.62, 0.0, 0.0), gravityIsLunarX,
+                       "parameter gravity is deprecated: rename it gravity_mps2", ""},
+        RenamedKeyCase{"GravityByBothNames", "gravity_mps2", "gravity", true, true,
+                       vector3(-1.62, 0.0, 0.0), gravityIsLunarX, "",
+                       "parameter gravity is the deprecated name of gravity_mps2, which is set "
+                       "too: keep only gravity_mps2"}),
+    [](const auto& info) { return info.param.name; });
+
+TEST(NodeConfig, AnOldKeyOutOfRangeIsNamedAsGiven) {
+  XmlRpcValue params = without(validParams(), "dt_s");
+  params["dt"] = 0.5;
+  std::vector<std::string> warnings;
+  try {
+    parseNodeConfig(params, warnings);
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("parameter dt = 0.5 must be in (0, 0.1]"),
+              std::string::npos)
+        << e.what();
+  }
+}
 
 TEST(NodeConfig, OnCloudNamesRoundTrip) {
   for (const auto value : {OnCloud::kTrack, OnCloud::kReset, OnCloud::kIgnore}) {
