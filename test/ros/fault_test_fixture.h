@@ -61,7 +61,7 @@ class FaultTestFixture : public ::testing::Test {
   bool hasShape(const std::string& object) {
     GetContacts call;
     call.request.object_a = object;
-    call.request.level = -1;
+    call.request.level = GetContacts::Request::RUNNING;
     return ros::service::call(kNode + "/get_contacts", call) && call.response.success &&
            call.response.message.find("has had no valid cloud yet") == std::string::npos;
   }

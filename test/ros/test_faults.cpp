@@ -196,10 +196,11 @@ TEST_F(FaultsTest, ServicesAnswerEveryCallOfSeveralClientsInATightLoop) {
   floor.publish(cloudOf(floorPoints(), "world"));
   counted.publish(cloudOf(cubePoints(-0.2), "world"));
   ASSERT_TRUE(waitFor([&] { return hasShape("counted") && hasShape("floor"); }));
-  SetLevel finest;
-  finest.request.level = 255;
-  ASSERT_TRUE(ros::service::call(kNode + "/set_level", finest));
-  const int max_level = finest.response.max_level;
+  SetLevel running;
+  running.request.level = SetLevel::Request::RUNNING;
+  ASSERT_TRUE(ros::service::call(kNode + "/set_level", running));
+  ASSERT_TRUE(running.response.success);
+  const int max_level = running.response.max_level;
 
   constexpr int kClients = 4;
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(2.0);
@@ -213,9 +214,10 @@ TEST_F(FaultsTest, ServicesAnswerEveryCallOfSeveralClientsInATightLoop) {
       for (int i = 0; ros::WallTime::now() < end; ++i) {
         GetContacts contacts;
         contacts.request.object_a = (i + c) % 3 == 0 ? "nobody" : "counted";
-        contacts.request.level = static_cast<std::int16_t>(i % (max_level + 3) - 1);
+        // -2 (the running level) to one past the leaves.
+        contacts.request.level = static_cast<std::int16_t>(i % (max_level + 4) - 2);
         SetLevel level;
-        level.request.level = static_cast<std::uint8_t>(i % 2 == 0 ? max_level : 200);
+        level.request.level = static_cast<std::int16_t>(i % 2 == 0 ? max_level : 200);
         const bool answered = get.call(contacts) && set.call(level);
         calls += 2;
         if (!answered) {
@@ -231,6 +233,8 @@ TEST_F(FaultsTest, ServicesAnswerEveryCallOfSeveralClientsInATightLoop) {
     });
   }
   for (auto& client : clients) client.join();
+  SetLevel finest;
+  finest.request.level = SetLevel::Request::FINEST;
   ASSERT_TRUE(ros::service::call(kNode + "/set_level", finest));
   EXPECT_GT(calls, 100);
   EXPECT_EQ(transport_failures, 0);
