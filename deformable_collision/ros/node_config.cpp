@@ -190,7 +190,7 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
   const std::string on_cloud = read.text("on_cloud", toString(OnCloud::kIgnore));
   const auto parsed_on_cloud = parseOnCloud(on_cloud);
   if (!parsed_on_cloud) {
-    ParamReader::fail(read.name("on_cloud"), "= '" + on_cloud + "' must be track, reset or ignore");
+    ParamReader::fail(read.name("on_cloud"), "= '" + on_cloud + "' must be " + enumNameList(kOnCloudNames));
   }
   params.on_cloud = *parsed_on_cloud;
 
@@ -198,7 +198,7 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
   const std::string mode = read.text("mode", toString(DeformationMode::kLinear));
   const auto parsed_mode = parseDeformationMode(mode);
   if (!parsed_mode) {
-    ParamReader::fail(read.name("mode"), "= '" + mode + "' must be rigid, linear or quadratic");
+    ParamReader::fail(read.name("mode"), "= '" + mode + "' must be " + enumNameList(kDeformationModeNames));
   }
 
   if (dynamic) {
@@ -242,25 +242,6 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
 }
 
 }  // namespace
-
-std::optional<OnCloud> parseOnCloud(const std::string& name) {
-  for (const auto value : {OnCloud::kTrack, OnCloud::kReset, OnCloud::kIgnore}) {
-    if (name == toString(value)) return value;
-  }
-  return std::nullopt;
-}
-
-const char* toString(OnCloud on_cloud) {
-  switch (on_cloud) {
-    case OnCloud::kTrack:
-      return "track";
-    case OnCloud::kReset:
-      return "reset";
-    case OnCloud::kIgnore:
-      return "ignore";
-  }
-  return "unknown";
-}
 
 NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::string>& warnings) {
   ParamReader read(params, "");

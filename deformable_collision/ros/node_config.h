@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "deformable_collision/core/enum_names.h"
 #include "deformable_collision/core/scene.h"
 
 namespace deformable_collision {
@@ -18,8 +19,14 @@ enum class OnCloud {
   kIgnore,  ///< Nothing.
 };
 
-std::optional<OnCloud> parseOnCloud(const std::string& name);
-const char* toString(OnCloud on_cloud);
+inline constexpr EnumNames<OnCloud, 3> kOnCloudNames{
+    {{OnCloud::kTrack, "track"}, {OnCloud::kReset, "reset"}, {OnCloud::kIgnore, "ignore"}}};
+
+/// The choice named `name` (kOnCloudNames); std::nullopt otherwise.
+inline std::optional<OnCloud> parseOnCloud(const std::string& name) {
+  return parseEnum(kOnCloudNames, name);
+}
+inline const char* toString(OnCloud on_cloud) { return enumName(kOnCloudNames, on_cloud); }
 
 /// One entry of the `objects` parameter.
 struct ObjectParams {
