@@ -161,6 +161,7 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
   }
   indexPointSlots(clusters_, n, point_slot_offsets_, point_slots_);
   displaced_moments_scratch_.assign(clusters_.size(), DisplacedMoments{});
+  displacement_marks_.assign(n, DisplacementMark{});
 
   deformations_.resize(clusters_.size());
   for (std::size_t k = 0; k < clusters_.size(); ++k) {

@@ -145,7 +145,9 @@ class ShapeMatchingBody {
   /// Moves points and changes their velocities by a collision response. The clusters holding
   /// them are refitted from incrementally updated sums, and their residual bounds grow by
   /// the displacement and by how far the refit moves any goal: the work is proportional to
-  /// the points moved plus the clusters touched, not to the object.
+  /// the points moved plus the clusters touched, not to the object. A point listed more than
+  /// once moves by the sum of its displacements and its velocity changes by the sum of its
+  /// changes, as if listed once with those sums where it first appears.
   /// @throw std::invalid_argument if a point index is out of range or a change is not
   ///        finite; the state is then unchanged.
   void displacePoints(const std::vector<PointDisplacement>& displacements);
@@ -178,6 +180,10 @@ class ShapeMatchingBody {
   void registerPositions(const std::vector<Eigen::Vector3d>* observed);
   template <DeformationMode Mode>
   void sumCurrentState();
+  bool validateDisplacements(const std::vector<PointDisplacement>& displacements);
+  const std::vector<PointDisplacement>& mergeRepeatedPoints(
+      const std::vector<PointDisplacement>& displacements);
+  void beginDisplacementMarks();
   template <DeformationMode Mode>
   void applyDisplacements(const std::vector<PointDisplacement>& displacements);
   template <DeformationMode Mode>
@@ -213,6 +219,15 @@ class ShapeMatchingBody {
   template <int K>
   struct DisplacementRun;
   std::vector<DisplacedMoments> displaced_moments_scratch_;  ///< One per cluster.
+  /// Whether a point was listed in the current pass over a displacement list (its `pass` is
+  /// displacement_pass_), and where it went in merged_displacements_.
+  struct DisplacementMark {
+    std::uint32_t pass = 0;
+    std::uint32_t merged_index = 0;
+  };
+  std::vector<DisplacementMark> displacement_marks_;  ///< One per point.
+  std::uint32_t displacement_pass_ = 0;
+  std::vector<PointDisplacement> merged_displacements_;  ///< Scratch: each point listed once.
   std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
   std::vector<ClusterSums> cluster_sums_;  ///< Of the current positions and velocities.
   std::vector<Eigen::Matrix<double, 3, 9>> goal_transforms_;  ///< Scratch of one step.

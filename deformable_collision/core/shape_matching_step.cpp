@@ -236,6 +236,17 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
 }
 
 void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements) {
+  const bool repeats = validateDisplacements(displacements);
+  const std::vector<PointDisplacement>& applied =
+      repeats ? mergeRepeatedPoints(displacements) : displacements;
+  detail::withMode(config_.mode,
+                   [&](auto mode) { applyDisplacements<decltype(mode)::value>(applied); });
+}
+
+/// @return whether a point is listed more than once.
+bool ShapeMatchingBody::validateDisplacements(const std::vector<PointDisplacement>& displacements) {
+  beginDisplacementMarks();
+  bool repeats = false;
   for (const auto& d : displacements) {
     if (d.point >= positions_.size()) {
       throw std::invalid_argument("displaced point " + std::to_string(d.point) +
@@ -246,9 +257,40 @@ void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& dis
       throw std::invalid_argument("displacement or velocity change of point " +
                                   std::to_string(d.point) + " is not finite");
     }
+    DisplacementMark& mark = displacement_marks_[d.point];
+    repeats = repeats || mark.pass == displacement_pass_;
+    mark.pass = displacement_pass_;
   }
-  detail::withMode(config_.mode,
-                   [&](auto mode) { applyDisplacements<decltype(mode)::value>(displacements); });
+  return repeats;
+}
+
+// The residual bound grows by each listed displacement: a point listed twice would move by
+// the sum and its clusters' bounds by one displacement only, so its entries are summed first.
+const std::vector<PointDisplacement>& ShapeMatchingBody::mergeRepeatedPoints(
+    const std::vector<PointDisplacement>& displacements) {
+  beginDisplacementMarks();
+  merged_displacements_.clear();
+  for (const auto& d : displacements) {
+    DisplacementMark& mark = displacement_marks_[d.point];
+    if (mark.pass != displacement_pass_) {
+      mark = {displacement_pass_, static_cast<std::uint32_t>(merged_displacements_.size())};
+      merged_displacements_.push_back(d);
+    } else {
+      PointDisplacement& merged = merged_displacements_[mark.merged_index];
+      merged.displacement_m += d.displacement_m;
+      merged.velocity_change_mps += d.velocity_change_mps;
+    }
+  }
+  return merged_displacements_;
+}
+
+/// A new pass over a displacement list: every point's mark is stale. Marks are cleared only
+/// when the pass counter wraps.
+void ShapeMatchingBody::beginDisplacementMarks() {
+  if (++displacement_pass_ == 0) {
+    std::fill(displacement_marks_.begin(), displacement_marks_.end(), DisplacementMark{});
+    displacement_pass_ = 1;
+  }
 }
 
 // With p = x - reference, a point moved by dx with its velocity changed by dv adds to the

@@ -507,6 +507,33 @@ TEST(DisplacePoints, BadInputThrowsAndLeavesTheStateAlone) {
   EXPECT_EQ(body.positions(), before);
 }
 
+TEST(DisplacePoints, PointListedTwiceMovesByTheSumAndTheBoundFollows) {
+  for (const auto mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    SCOPED_TRACE(toString(mode));
+    ShapeMatchingBody listed(sampleEllipsoid(600, {0.4, 0.3, 0.2}, 45), configFor(mode, 2));
+    for (int s = 0; s < 3; ++s) listed.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    ShapeMatchingBody merged = listed;
+    const Cluster& first = listed.cluster(0);
+    ASSERT_LT(first.exclusive_count, first.points.size()) << "a point both clusters hold";
+    const std::uint32_t shared = first.points[first.exclusive_count];
+    const Eigen::Vector3d dx1(0.0, 0.0, 0.01), dx2(0.003, 0.0, 0.01), dx3(0.0, -0.002, 0.0);
+    const Eigen::Vector3d dv1(0.0, 0.0, 1.0), dv2(0.5, 0.0, 0.0), dv3(0.0, 0.2, 0.0);
+    listed.displacePoints({{shared, dx1, dv1}, {7, dx3, dv3}, {shared, dx2, dv2}});
+    merged.displacePoints({{shared, dx1 + dx2, dv1 + dv2}, {7, dx3, dv3}});
+    EXPECT_LE(worstBoundExcess(listed), 1e-12);
+    EXPECT_TRUE(listed.positions() == merged.positions());
+    EXPECT_TRUE(listed.velocities() == merged.velocities());
+    for (std::size_t k = 0; k < listed.clusterCount(); ++k) {
+      EXPECT_EQ(listed.deformation(k).transform, merged.deformation(k).transform) << "cluster " << k;
+      EXPECT_EQ(listed.deformation(k).translation, merged.deformation(k).translation) << "cluster " << k;
+      EXPECT_EQ(listed.deformation(k).goal_deviation_bound_m,
+                merged.deformation(k).goal_deviation_bound_m)
+          << "cluster " << k;
+    }
+  }
+}
+
 TEST(SetVelocities, SpinIsKeptByTheDampingAndMomentumConserved) {
   ShapeMatchingConfig config = configFor(DeformationMode::kLinear, 2);
   config.damping = 0.5;

@@ -227,6 +227,16 @@ std::vector<EnclosureCase> enclosureCases() {
       }));
       for (int s = 0; s < 5; ++s) body.step(0.02, Eigen::Vector3d(0, 0, -9.81));
     });
+    // The topmost point, pushed out of the sphere of every node that holds it by the sum of
+    // its two displacements, not by one.
+    add("point_displaced_twice", 2, [](ShapeMatchingBody& body) {
+      const auto& x = body.positions();
+      const auto top = static_cast<std::uint32_t>(
+          std::max_element(x.begin(), x.end(), [](const auto& a, const auto& b) { return a.z() < b.z(); }) -
+          x.begin());
+      const PointDisplacement up{top, Eigen::Vector3d(0, 0, 0.01), Eigen::Vector3d::Zero()};
+      body.displacePoints({up, up});
+    });
   }
   return cases;
 }
