@@ -525,10 +525,10 @@ TEST(DisplacePoints, PointListedTwiceMovesByTheSumAndTheBoundFollows) {
     EXPECT_TRUE(listed.positions() == merged.positions());
     EXPECT_TRUE(listed.velocities() == merged.velocities());
     for (std::size_t k = 0; k < listed.clusterCount(); ++k) {
-      EXPECT_EQ(listed.deformation(k).transform, merged.deformation(k).transform) << "cluster " << k;
-      EXPECT_EQ(listed.deformation(k).translation, merged.deformation(k).translation) << "cluster " << k;
-      EXPECT_EQ(listed.deformation(k).goal_deviation_bound_m,
-                merged.deformation(k).goal_deviation_bound_m)
+      const ClusterDeformation& once = merged.deformation(k);
+      EXPECT_EQ(listed.deformation(k).transform, once.transform) << "cluster " << k;
+      EXPECT_EQ(listed.deformation(k).translation, once.translation) << "cluster " << k;
+      EXPECT_EQ(listed.deformation(k).goal_deviation_bound_m, once.goal_deviation_bound_m)
           << "cluster " << k;
     }
   }

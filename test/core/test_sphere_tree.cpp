@@ -231,9 +231,8 @@ std::vector<EnclosureCase> enclosureCases() {
     // its two displacements, not by one.
     add("point_displaced_twice", 2, [](ShapeMatchingBody& body) {
       const auto& x = body.positions();
-      const auto top = static_cast<std::uint32_t>(
-          std::max_element(x.begin(), x.end(), [](const auto& a, const auto& b) { return a.z() < b.z(); }) -
-          x.begin());
+      std::uint32_t top = 0;
+      for (std::uint32_t i = 1; i < x.size(); ++i) top = x[i].z() > x[top].z() ? i : top;
       const PointDisplacement up{top, Eigen::Vector3d(0, 0, 0.01), Eigen::Vector3d::Zero()};
       body.displacePoints({up, up});
     });
