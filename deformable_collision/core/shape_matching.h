@@ -86,8 +86,9 @@ struct ClusterDeformation {
   /// [A Q M] of the fit; R alone for a rigid cluster.
   Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();                 ///< R.
-  /// Largest |transform * q~_i + translation - x_i| over the cluster's points: the fit's
-  /// residual d (docs/design.md, erratum 3), measured exactly after the points moved.
+  /// At least the largest |transform * q~_i + translation - x_i| over the cluster's points:
+  /// the fit's residual d (docs/design.md, erratum 3), measured by step, track and
+  /// setPositions, and grown by displacePoints and moveRigidly so that it stays a bound.
   double goal_deviation_bound_m = 0.0;
 };
 
@@ -144,17 +145,19 @@ class ShapeMatchingBody {
 
   /// Moves points and changes their velocities by a collision response. The clusters holding
   /// them are refitted from incrementally updated sums, and their residual bounds grow by
-  /// the displacement and by how far the refit moves any goal: the work is proportional to
-  /// the points moved plus the clusters touched, not to the object. A point listed more than
-  /// once moves by the sum of its displacements and its velocity changes by the sum of its
-  /// changes, as if listed once with those sums where it first appears.
+  /// the displacement, by how far the refit moves any goal and by the rounding of the
+  /// coordinates: the work is proportional to the points moved plus the clusters touched,
+  /// not to the object. A point listed more than once moves by the sum of its displacements
+  /// and its velocity changes by the sum of its changes, as if listed once with those sums
+  /// where it first appears.
   /// @throw std::invalid_argument if a point index is out of range or a change is not
   ///        finite; the state is then unchanged.
   void displacePoints(const std::vector<PointDisplacement>& displacements);
 
   /// Moves every point by the same offset and adds the same velocity to each (a collision
-  /// response on the whole object), in one pass over the points: the fit moves along and its
-  /// residual is unchanged; the sums follow in O(clusters).
+  /// response on the whole object), in one pass over the points: the fit moves along, its
+  /// residual bound grows only by the rounding of the move (a few ulp of the coordinates),
+  /// and the sums follow in O(clusters).
   /// @throw std::invalid_argument if the offset or the velocity is not finite; the state is
   ///        then unchanged.
   void moveRigidly(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps);

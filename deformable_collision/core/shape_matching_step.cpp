@@ -130,6 +130,19 @@ void addSharedGoals(const GoalKernel<K> kernel, const Cluster& cluster,
   }
 }
 
+/// How far rounding can move a point of the cluster, or its fit's translation, when a vector
+/// of norm at most `added_norm_m` is added to it: half an ulp of each coordinate of the sum,
+/// at most u (|x| + |added|), taken as eps = 2u for slack over this bound's own rounding.
+/// |x| is bounded from the fit, |x_i| <= |t| + |T| |q~_i| + d, without visiting the points;
+/// that bound is at least |t|, so it covers the translation as well.
+double additionRoundingBound(const Cluster& cluster, const ClusterDeformation& deformation,
+                             double added_norm_m) {
+  const double largest_norm = deformation.translation.norm() +
+                              deformation.transform.norm() * cluster.max_feature_norm +
+                              deformation.goal_deviation_bound_m;
+  return std::sqrt(3.0) * std::numeric_limits<double>::epsilon() * (largest_norm + added_norm_m);
+}
+
 }  // namespace
 
 void ShapeMatchingBody::step(double dt_s, const Eigen::Vector3d& acceleration_mps2) {
@@ -217,10 +230,16 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
     positions[i] += offset;
     velocities[i] += change;
   }
+  const double offset_norm = offset_m.norm();
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     ClusterSums& sums = cluster_sums_[k];
+    ClusterDeformation& deformation = deformations_[k];
     const double mass = cluster.total_weight_kg;
+    // The points and the translation are each rounded as they move: over many moves with no
+    // step in between, the rounding alone would carry the points out of the bound.
+    deformation.goal_deviation_bound_m +=
+        2.0 * additionRoundingBound(cluster, deformation, offset_norm);
     // Moved first, then pushed: the move's angular momentum takes the momentum before the
     // push, and the push's the offset after the move.
     sums.second_moment += sums.offset * offset_m.transpose() + offset_m * sums.offset.transpose() +
@@ -228,8 +247,8 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
     sums.angular_momentum += offset_m.cross(sums.momentum);
     sums.offset_features += (mass * offset_m) * cluster.mean_features.transpose();
     sums.offset += mass * offset_m;
-    deformations_[k].center_of_mass += offset_m;
-    deformations_[k].translation += offset_m;
+    deformation.center_of_mass += offset_m;
+    deformation.translation += offset_m;
     sums.momentum += mass * velocity_change_mps;
     sums.angular_momentum += sums.offset.cross(velocity_change_mps);
   }
@@ -404,16 +423,19 @@ void ShapeMatchingBody::refitDisplacedClusters() {
       }
     }
     ClusterDeformation& deformation = deformations_[k];
+    const double largest_displacement = std::sqrt(added.largest_squared_m2);
+    const double rounding = additionRoundingBound(clusters_[k], deformation, largest_displacement);
     const Eigen::Matrix<double, 3, K> old_transform = deformation.transform.template leftCols<K>();
     const Eigen::Vector3d old_translation = deformation.translation;
     detail::registerCluster<Mode>(clusters_[k], sums, deformation);
     // Every fitted point moves by at most |dT| |q~| + |dt| with the refit, and a displaced
-    // point by its displacement too: the residual stays bounded without visiting the cluster.
+    // point by its displacement, rounded, too: the residual stays bounded without visiting
+    // the cluster.
     const double refit_motion =
         (deformation.transform.template leftCols<K>() - old_transform).norm() *
             clusters_[k].max_feature_norm +
         (deformation.translation - old_translation).norm();
-    deformation.goal_deviation_bound_m += std::sqrt(added.largest_squared_m2) + refit_motion;
+    deformation.goal_deviation_bound_m += largest_displacement + refit_motion + rounding;
     added = DisplacedMoments{};
   }
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <random>
 
@@ -235,6 +236,16 @@ std::vector<EnclosureCase> enclosureCases() {
       for (std::uint32_t i = 1; i < x.size(); ++i) top = x[i].z() > x[top].z() ? i : top;
       const PointDisplacement up{top, Eigen::Vector3d(0, 0, 0.01), Eigen::Vector3d::Zero()};
       body.displacePoints({up, up});
+    });
+    // Rigid moves of 0.6 ulp at 2^16 m round one way for the points below x = 65536 m and
+    // another for those above: the shape drifts from the fit by rounding alone.
+    add("moved_rigidly_across_2_16", 2, [](ShapeMatchingBody& body) {
+      const Eigen::Vector3d across(65536.0, 0, 0);
+      body.setPositions(mapped(body.restPositions(), [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+        return p + across;
+      }));
+      const Eigen::Vector3d offset(0.6 * std::ldexp(1.0, 16 - 52), 0, 0);
+      for (int m = 0; m < 30000; ++m) body.moveRigidly(offset, Eigen::Vector3d::Zero());
     });
   }
   return cases;
