@@ -123,7 +123,9 @@ class Scene {
   int maxLevel() const;
 
   /// Contacts at `level` on the current state, for objects a and b (std::nullopt: any).
-  /// The running level and the contacts of the last cycle are left alone.
+  /// The running level and the contacts of the last cycle are left alone. Like cycle(), it
+  /// never reports two static objects touching: the broad phase never pairs them, since
+  /// neither can move the other.
   /// @throw std::out_of_range if level is not in [0, maxLevel()] or an object index is not.
   void contactsAt(int level, std::optional<std::size_t> object_a,
                   std::optional<std::size_t> object_b, std::vector<SceneContact>& contacts);

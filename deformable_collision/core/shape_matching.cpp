@@ -52,6 +52,13 @@ void validateRestPoints(const std::vector<Eigen::Vector3d>& rest_points) {
 
 void validate(const std::vector<Eigen::Vector3d>& rest_points, const ShapeMatchingConfig& c) {
   validateRestPoints(rest_points);
+  // A mode outside the enum (a cast of another number) would fit nothing, and the spheres
+  // built on its fits would not enclose the points.
+  if (!parseDeformationMode(toString(c.mode))) {
+    throw std::invalid_argument("ShapeMatchingConfig.mode = " +
+                                std::to_string(static_cast<int>(c.mode)) + " must be " +
+                                enumNameList(kDeformationModeNames));
+  }
   const auto in_unit_interval = [](double v) { return v >= 0.0 && v <= 1.0; };
   if (!(c.mass_kg > 0.0) || !std::isfinite(c.mass_kg)) {
     throw std::invalid_argument(describe("mass_kg", c.mass_kg, "must be finite and > 0"));

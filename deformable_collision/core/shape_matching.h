@@ -113,8 +113,8 @@ class ShapeMatchingBody {
   /// of the fit residuals: eight points per instruction, the same bits as without. Sums over
   /// points are taken in eight interleaved parts either way.
   /// @throw std::invalid_argument naming the bad value: empty or non-finite rest points,
-  ///        mass_kg <= 0, stiffness, beta or damping outside [0, 1], clusters outside
-  ///        [1, points], negative overlap.
+  ///        a mode outside DeformationMode, mass_kg <= 0, stiffness, beta or damping outside
+  ///        [0, 1], clusters outside [1, points], negative overlap.
   ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points, const ShapeMatchingConfig& config,
                     bool use_wide_vectors = wideVectorsAvailable());
 

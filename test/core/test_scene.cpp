@@ -405,6 +405,34 @@ TEST(Scene, EnergyStaysBoundedWithoutExternalForces) {
   EXPECT_TRUE(touched) << "the two objects must meet";
 }
 
+// Two static objects cannot move each other, so the broad phase never pairs them: neither a
+// cycle nor a query at any level reports them, however much they overlap. A dynamic object
+// in the same place is reported against both.
+TEST(Scene, TwoStaticObjectsAreNeverReportedTouching) {
+  Scene scene{SceneConfig{}};
+  for (const char* name : {"wall", "shelf", "ball"}) {
+    ObjectConfig object;
+    object.name = name;
+    object.kind = std::string(name) == "ball" ? ObjectKind::kDynamic : ObjectKind::kStatic;
+    scene.addObject(object, sampleEllipsoid(300, Eigen::Vector3d(0.1, 0.1, 0.1), 3));
+  }
+  scene.cycle();
+  std::vector<SceneContact> contacts;
+  for (int level = 0; level <= scene.maxLevel(); ++level) {
+    scene.contactsAt(level, std::nullopt, std::nullopt, contacts);
+    bool wall_with_shelf = false, ball_with_wall = false;
+    for (const auto& c : contacts) {
+      const std::uint32_t ball = 2;
+      wall_with_shelf |= c.object_a != ball && c.object_b != ball;
+      ball_with_wall |= (c.object_a == ball) != (c.object_b == ball) &&
+                        (c.object_a == 0 || c.object_b == 0);
+    }
+    EXPECT_FALSE(wall_with_shelf) << "level " << level;
+    EXPECT_TRUE(ball_with_wall) << "level " << level;
+  }
+  for (const auto& c : scene.contacts()) EXPECT_TRUE(c.object_a == 2 || c.object_b == 2);
+}
+
 TEST(Scene, LevelSwitchesBetweenCyclesAndQueriesLeaveItAlone) {
   auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
   for (int cycle = 0; cycle < 40; ++cycle) scene->cycle();  // the objects are on the floor

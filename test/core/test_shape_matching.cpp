@@ -833,6 +833,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadConfigCase{"more_clusters_than_points", [](auto& c, auto&) { c.clusters = 21; }, "clusters = 21"},
         BadConfigCase{"negative_overlap", [](auto& c, auto&) { c.cluster_overlap_ratio = -0.2; },
                       "cluster_overlap_ratio = -0.2"},
+        BadConfigCase{"mode_outside_the_enum",
+                      [](auto& c, auto&) { c.mode = static_cast<DeformationMode>(7); }, "mode = 7"},
         BadConfigCase{"empty_point_set", [](auto&, auto& p) { p.clear(); }, "no points"},
         BadConfigCase{"non_finite_point",
                       [](auto&, auto& p) { p[7] = Eigen::Vector3d(0, std::nan(""), 0); },
