@@ -187,85 +187,134 @@ template <bool Wide>
   return mask;
 }
 
+/// A leaf's points as coordinate arrays: its columns of the tree's leafPositions().
+struct LeafPoints {
+  std::uint32_t first_slot;
+  std::uint32_t count;
+  const double* x;
+  const double* y;
+  const double* z;
+};
+
+[[gnu::always_inline]] inline LeafPoints leafPoints(const SphereTree& tree, std::uint32_t leaf) {
+  const std::uint32_t first = tree.leafSlotStarts()[leaf];
+  const std::uint32_t count = tree.leafSlotStarts()[leaf + 1] - first;
+  const auto& positions = tree.leafPositions();
+  return {first, count, &positions(0, first), &positions(1, first), &positions(2, first)};
+}
+
+/// The closest point pair of two leaves as offsets into their points: the first point of a
+/// at the least distance, and the first point of b at that distance from it.
+struct ClosestPair {
+  double squared_distance;
+  std::uint32_t offset_a;
+  std::uint32_t offset_b;
+};
+
+#if defined(__GNUC__) && defined(__x86_64__)
+/// Whether a pair of the leaves' points is closer than `pair.squared_distance`, and then
+/// the closest in `pair`: all pairs at once, eight of b's points per instruction.
+[[gnu::always_inline]] inline bool closestPairAllAtOnce(const LeafPoints& a, const LeafPoints& b,
+                                                        ClosestPair& pair, QueryCounters& counters) {
+  counters.point_tests += a.count * b.count;
+  if (b.count <= 8) {
+    return closestPairOfEightAvx512(a.x, a.y, a.z, a.count, b.x, b.y, b.z, b.count,
+                                    pair.squared_distance, pair.squared_distance, pair.offset_a,
+                                    pair.offset_b);
+  }
+  if (!nearestPairSquaredDistanceAvx512(a.x, a.y, a.z, a.count, b.x, b.y, b.z, b.count,
+                                        pair.squared_distance, pair.squared_distance)) {
+    return false;
+  }
+  firstPairAtAvx512(a.x, a.y, a.z, a.count, b.x, b.y, b.z, b.count, pair.squared_distance,
+                    pair.offset_a, pair.offset_b);
+  return true;
+}
+#endif
+
+/// Offset of the first of b's points nearest to (x, y, z).
+[[gnu::always_inline]] inline std::uint32_t firstNearest(const LeafPoints& b, double x, double y,
+                                                         double z) {
+  double nearest = std::numeric_limits<double>::infinity();
+  std::uint32_t first = 0;
+  for (std::uint32_t t = 0; t < b.count; ++t) {
+    const double dx = x - b.x[t], dy = y - b.y[t], dz = z - b.z[t];
+    const double distance_squared = dx * dx + dy * dy + dz * dz;
+    if (distance_squared < nearest) {
+      nearest = distance_squared;
+      first = t;
+    }
+  }
+  return first;
+}
+
+/// closestPairAllAtOnce without wide vectors: only the points of a within `reach_m` (b's
+/// leaf radius plus the contact distance) of b's leaf centre are tested against all of b's.
+[[gnu::always_inline]] inline bool closestPairNearSphere(const LeafPoints& a, const LeafPoints& b,
+                                                         const Eigen::Vector3d& center_b,
+                                                         double reach_m, ClosestPair& pair,
+                                                         QueryCounters& counters) {
+  counters.point_tests += a.count;
+  for (std::uint32_t s = 0; s < a.count; ++s) {
+    const Eigen::Vector3d point(a.x[s], a.y[s], a.z[s]);
+    if ((point - center_b).squaredNorm() >= reach_m * reach_m) continue;
+    counters.point_tests += b.count;
+    const double nearest = nearestSquaredDistance(b.x, b.y, b.z, b.count, a.x[s], a.y[s], a.z[s]);
+    if (nearest < pair.squared_distance) {
+      pair.squared_distance = nearest;
+      pair.offset_a = s;
+    }
+  }
+  if (pair.offset_a == a.count) return false;
+  pair.offset_b = firstNearest(b, a.x[pair.offset_a], a.y[pair.offset_a], a.z[pair.offset_a]);
+  return true;
+}
+
+/// Records the contact of two leaves at their closest pair, closer than the contact distance.
+[[gnu::always_inline]] inline void addLeafContact(const SphereTree& a, std::uint32_t leaf_a,
+                                                  const LeafPoints& points_a, const SphereTree& b,
+                                                  std::uint32_t leaf_b, const LeafPoints& points_b,
+                                                  const ClosestPair& pair,
+                                                  double contact_distance_m,
+                                                  ContactSink& contacts) {
+  SphereContact& contact = contacts.add();
+  contact.node_a = a.leafNode(leaf_a);
+  contact.node_b = b.leafNode(leaf_b);
+  contact.level = std::max(a.node(contact.node_a).level, b.node(contact.node_b).level);
+  contact.point_a = a.pointIndices()[points_a.first_slot + pair.offset_a];
+  contact.point_b = b.pointIndices()[points_b.first_slot + pair.offset_b];
+  const std::uint32_t s = pair.offset_a;
+  const std::uint32_t t = pair.offset_b;
+  const Eigen::Vector3d x(points_a.x[s], points_a.y[s], points_a.z[s]);
+  const Eigen::Vector3d y(points_b.x[t], points_b.y[t], points_b.z[t]);
+  contact.position = 0.5 * (x + y);
+  contact.normal = directionFrom(y, x);
+  contact.depth_m = contact_distance_m - std::sqrt(pair.squared_distance);
+}
+
 /// Adds the contact of the leaves at `leaf_a` and `leaf_b` in the trees' leaf orders if a
-/// point pair is closer than the contact distance, at their closest pair: all pairs at once
-/// with wide vectors; otherwise the points of a near b's sphere, each against b's. Both
-/// leaves must be current.
+/// point pair is closer than the contact distance, at their closest pair. Both leaves must
+/// be current.
 template <bool Wide>
 [[gnu::always_inline]] inline void closestLeafPair(const SphereTree& a, std::uint32_t leaf_a,
                                                    const SphereTree& b, std::uint32_t leaf_b,
                                                    double contact_distance_m, ContactSink& contacts,
                                                    QueryCounters& counters) {
-  const std::uint32_t first_a = a.leafSlotStarts()[leaf_a];
-  const std::uint32_t first_b = b.leafSlotStarts()[leaf_b];
-  const std::uint32_t count_a = a.leafSlotStarts()[leaf_a + 1] - first_a;
-  const std::uint32_t count_b = b.leafSlotStarts()[leaf_b + 1] - first_b;
-  const auto& pa = a.leafPositions();
-  const auto& pb = b.leafPositions();
-  const double* bx = &pb(0, first_b);
-  const double* by = &pb(1, first_b);
-  const double* bz = &pb(2, first_b);
-  const double* ax = &pa(0, first_a);
-  const double* ay = &pa(1, first_a);
-  const double* az = &pa(2, first_a);
-  double best = contact_distance_m * contact_distance_m;
-  // Offsets of the closest pair in the two leaves: the first point of a at the least
-  // distance, and the first point of b at that distance from it.
-  std::uint32_t best_a = count_a;
-  std::uint32_t best_b = 0;
+  const LeafPoints points_a = leafPoints(a, leaf_a);
+  const LeafPoints points_b = leafPoints(b, leaf_b);
+  ClosestPair pair{contact_distance_m * contact_distance_m, points_a.count, 0};
 #if defined(__GNUC__) && defined(__x86_64__)
   if constexpr (Wide) {
-    counters.point_tests += count_a * count_b;
-    if (count_b <= 8) {
-      if (!closestPairOfEightAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best, best_a,
-                                    best_b)) {
-        return;
-      }
-    } else {
-      if (!nearestPairSquaredDistanceAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best)) {
-        return;
-      }
-      firstPairAtAvx512(ax, ay, az, count_a, bx, by, bz, count_b, best, best_a, best_b);
-    }
+    if (!closestPairAllAtOnce(points_a, points_b, pair, counters)) return;
   } else
 #endif
   {
     const LeafSpheres& spheres_b = b.leafSpheres();
     const Eigen::Vector3d center_b(spheres_b.x[leaf_b], spheres_b.y[leaf_b], spheres_b.z[leaf_b]);
-    const double reach = spheres_b.radius[leaf_b] + contact_distance_m;
-    counters.point_tests += count_a;
-    for (std::uint32_t s = 0; s < count_a; ++s) {
-      const Eigen::Vector3d point(ax[s], ay[s], az[s]);
-      if ((point - center_b).squaredNorm() >= reach * reach) continue;
-      counters.point_tests += count_b;
-      const double nearest = nearestSquaredDistance(bx, by, bz, count_b, ax[s], ay[s], az[s]);
-      if (nearest < best) {
-        best = nearest;
-        best_a = s;
-      }
-    }
-    if (best_a == count_a) return;
-    double nearest = std::numeric_limits<double>::infinity();
-    for (std::uint32_t t = 0; t < count_b; ++t) {
-      const double dx = ax[best_a] - bx[t], dy = ay[best_a] - by[t], dz = az[best_a] - bz[t];
-      const double distance_squared = dx * dx + dy * dy + dz * dz;
-      if (distance_squared < nearest) {
-        nearest = distance_squared;
-        best_b = t;
-      }
-    }
+    const double reach_m = spheres_b.radius[leaf_b] + contact_distance_m;
+    if (!closestPairNearSphere(points_a, points_b, center_b, reach_m, pair, counters)) return;
   }
-  SphereContact& contact = contacts.add();
-  contact.node_a = a.leafNode(leaf_a);
-  contact.node_b = b.leafNode(leaf_b);
-  contact.level = std::max(a.node(contact.node_a).level, b.node(contact.node_b).level);
-  contact.point_a = a.pointIndices()[first_a + best_a];
-  contact.point_b = b.pointIndices()[first_b + best_b];
-  const Eigen::Vector3d x(ax[best_a], ay[best_a], az[best_a]);
-  const Eigen::Vector3d y(bx[best_b], by[best_b], bz[best_b]);
-  contact.position = 0.5 * (x + y);
-  contact.normal = directionFrom(y, x);
-  contact.depth_m = contact_distance_m - std::sqrt(best);
+  addLeafContact(a, leaf_a, points_a, b, leaf_b, points_b, pair, contact_distance_m, contacts);
 }
 
 /// Leaves under a node at which the descent to the leaves stops: their spheres are then
@@ -387,7 +436,135 @@ double overlap(const Sphere& a, const Sphere& b, double contact_distance_m) {
   return a.radius + b.radius + contact_distance_m - (a.center - b.center).norm();
 }
 
+inline std::uint32_t bucketCount(const SphereTree& tree) {
+  return static_cast<std::uint32_t>(tree.buckets().size());
+}
+
 }  // namespace
+
+/// One query's trees, level and reach, where its contacts and counts go, and the steps of
+/// its descent. Its members are inlined into collide(), so it lives in registers.
+struct HierarchyQuery::Descent {
+  SphereTree& a;
+  SphereTree& b;
+  int level;
+  double contact_distance_m;
+  ContactSink& contacts;
+  QueryCounters& counters;
+  bool wide_vectors;
+  bool to_leaves;
+  /// Towards the leaves, a node of kBucketLeaves leaves or fewer is measured with its
+  /// leaves: its leaves are tested whenever it comes within reach of another.
+  std::uint32_t leaf_limit;
+  /// A small object is never descended: its buckets meet the other's as a set, the other
+  /// object's buckets one at a time if it is not small too.
+  bool small_a;
+  bool small_b;
+
+  /// Whether the descent ends at `node`; branch-free, as the outcome is a coin toss.
+  [[gnu::always_inline]] bool terminal(const NodeState& node) const {
+    return to_leaves ? node.leaf_count <= kBucketLeaves : endsDescentToLevel(node, level);
+  }
+
+  [[gnu::always_inline]] void leafContactsOfBucketSets(const std::uint32_t* buckets_a,
+                                                       std::uint32_t count_a,
+                                                       const std::uint32_t* buckets_b,
+                                                       std::uint32_t count_b) const {
+#if defined(__GNUC__) && defined(__x86_64__)
+    if (wide_vectors) {
+      collideBucketSetsWide(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+                            contacts, counters);
+      return;
+    }
+#endif
+    collideBucketSetsPortable(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+                              contacts, counters);
+  }
+
+  [[gnu::always_inline]] void leafContactsOfBuckets(const NodeState& bucket_a,
+                                                    const NodeState& bucket_b) const {
+#if defined(__GNUC__) && defined(__x86_64__)
+    if (wide_vectors) {
+      collideBucketsWide(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+      return;
+    }
+#endif
+    collideBucketsPortable(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+  }
+
+  /// The contact of two nodes above the leaves, with the pair's least overlap as its depth.
+  [[gnu::always_inline]] void addNodeContact(const PendingPair& pair, const NodeState& na,
+                                             const NodeState& nb) const {
+    SphereContact& contact = contacts.add();
+    contact.node_a = pair.node_a;
+    contact.node_b = pair.node_b;
+    contact.level = std::max(na.level, nb.level);
+    const Sphere& sa = na.sphere;
+    const Sphere& sb = nb.sphere;
+    contact.normal = directionFrom(sb.center, sa.center);
+    contact.depth_m = pair.least_overlap_m;
+    // Midway between the surfaces (grown by half the contact distance each) along the normal.
+    const Eigen::Vector3d surface_a = sa.center - (sa.radius + 0.5 * contact_distance_m) * contact.normal;
+    const Eigen::Vector3d surface_b = sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
+    contact.position = 0.5 * (surface_a + surface_b);
+  }
+
+  /// The contacts of a pair within reach at which the descent ends on both sides.
+  [[gnu::always_inline]] void collideWhereDescentEnds(const PendingPair& pair,
+                                                      const NodeState& na,
+                                                      const NodeState& nb) const {
+    if (small_a || small_b) {
+      const std::uint32_t bucket_a = pair.node_a;
+      const std::uint32_t bucket_b = pair.node_b;
+      leafContactsOfBucketSets(small_a ? a.buckets().data() : &bucket_a,
+                               small_a ? bucketCount(a) : 1,
+                               small_b ? b.buckets().data() : &bucket_b,
+                               small_b ? bucketCount(b) : 1);
+    } else if (to_leaves) {
+      leafContactsOfBuckets(na, nb);
+    } else {
+      addNodeContact(pair, na, nb);
+    }
+  }
+
+  /// Above the leaves, the least overlap of a pair's spheres and its ancestors' (see
+  /// collide()); at the leaves the points give the depth.
+  [[gnu::always_inline]] double leastOverlap(double ancestors_m, const Sphere& sa,
+                                             const Sphere& sb) const {
+    return to_leaves ? 0.0 : std::min(ancestors_m, overlap(sa, sb, contact_distance_m));
+  }
+
+  /// Stacks the children of a's node (if `split_a`, else of b's) that come within reach of
+  /// the other node, and returns the new stack height. Children go last first, so that
+  /// contacts come in depth-first order; each is written on top and kept if it is within
+  /// reach. The stack grows only in the first queries.
+  [[gnu::always_inline]] std::size_t stackChildrenInReach(std::vector<PendingPair>& stack,
+                                                          std::size_t stacked,
+                                                          const PendingPair& pair,
+                                                          const NodeState& na,
+                                                          const NodeState& nb,
+                                                          bool split_a) const {
+    const NodeState& split = split_a ? na : nb;
+    if (stack.size() < stacked + split.child_count) {
+      stack.resize(std::max(2 * stack.size(), stacked + split.child_count));
+    }
+    counters.node_pairs_tested += split.child_count;
+    if (split_a) {
+      for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
+        const Sphere& child = a.current(c, leaf_limit).sphere;
+        stack[stacked] = {c, pair.node_b, leastOverlap(pair.least_overlap_m, child, nb.sphere)};
+        stacked += withinReach(child, nb.sphere, contact_distance_m);
+      }
+    } else {
+      for (std::uint32_t c = nb.first_child + nb.child_count; c-- > nb.first_child;) {
+        const Sphere& child = b.current(c, leaf_limit).sphere;
+        stack[stacked] = {pair.node_a, c, leastOverlap(pair.least_overlap_m, na.sphere, child)};
+        stacked += withinReach(na.sphere, child, contact_distance_m);
+      }
+    }
+    return stacked;
+  }
+};
 
 HierarchyQuery::HierarchyQuery(bool use_wide_vectors)
     : wide_vectors_(use_wide_vectors && wideVectorsAvailable()) {}
@@ -405,39 +582,27 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              ContactSink& contacts, QueryCounters& counters) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
-  // Towards the leaves, a node of kBucketLeaves leaves or fewer is measured with its leaves:
-  // its leaves are tested whenever it comes within reach of another.
-  const std::uint32_t leaf_limit = to_leaves ? kBucketLeaves : 0;
-  // Branch-free where the outcome is a coin toss: which pairs end, which are in reach.
-  const auto terminal = [level, to_leaves](const NodeState& node) {
-    return to_leaves ? node.leaf_count <= kBucketLeaves : endsDescentToLevel(node, level);
-  };
+  const Descent descent{a,
+                        b,
+                        level,
+                        contact_distance_m,
+                        contacts,
+                        counters,
+                        wide_vectors_,
+                        to_leaves,
+                        to_leaves ? kBucketLeaves : 0,
+                        to_leaves && a.buckets().size() <= kBucketLeaves,
+                        to_leaves && b.buckets().size() <= kBucketLeaves};
+  const std::uint32_t leaf_limit = descent.leaf_limit;
   // Pairs are tested before they are stacked, so the stack holds only pairs within reach.
   ++counters.node_pairs_tested;
   if (!withinReach(a.current(0, leaf_limit).sphere, b.current(0, leaf_limit).sphere,
                    contact_distance_m)) {
     return;
   }
-  const auto bucketSets = [&](const std::uint32_t* buckets_a, std::uint32_t count_a,
-                              const std::uint32_t* buckets_b, std::uint32_t count_b) {
-#if defined(__GNUC__) && defined(__x86_64__)
-    if (wide_vectors_) {
-      collideBucketSetsWide(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                            contacts, counters);
-      return;
-    }
-#endif
-    collideBucketSetsPortable(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                              contacts, counters);
-  };
-  // A small object is never descended: its buckets meet the other's as a set, the other
-  // object's buckets one at a time if it is not small too.
-  const bool small_a = to_leaves && a.buckets().size() <= kBucketLeaves;
-  const bool small_b = to_leaves && b.buckets().size() <= kBucketLeaves;
-  const auto bucket_count_a = static_cast<std::uint32_t>(a.buckets().size());
-  const auto bucket_count_b = static_cast<std::uint32_t>(b.buckets().size());
-  if (small_a && small_b) {
-    bucketSets(a.buckets().data(), bucket_count_a, b.buckets().data(), bucket_count_b);
+  if (descent.small_a && descent.small_b) {
+    descent.leafContactsOfBucketSets(a.buckets().data(), bucketCount(a), b.buckets().data(),
+                                     bucketCount(b));
     return;
   }
   // Above the leaves a pair carries the least overlap of its own and its ancestors'
@@ -448,69 +613,19 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
   stack_[0] = {0, 0, to_leaves ? 0.0 : overlap(a.sphere(0), b.sphere(0), contact_distance_m)};
   std::size_t stacked = 1;
   while (stacked > 0) {
-    const auto [ia, ib, least_overlap] = stack_[--stacked];
-    const NodeState& na = a.current(ia, leaf_limit);
-    const NodeState& nb = b.current(ib, leaf_limit);
-    const bool stop_a = small_a || terminal(na);
-    const bool stop_b = small_b || terminal(nb);
+    // A copy: the children stacked next may be written over its slot.
+    const PendingPair pair = stack_[--stacked];
+    const NodeState& na = a.current(pair.node_a, leaf_limit);
+    const NodeState& nb = b.current(pair.node_b, leaf_limit);
+    const bool stop_a = descent.small_a || descent.terminal(na);
+    const bool stop_b = descent.small_b || descent.terminal(nb);
     if (stop_a && stop_b) {
-      if (small_a || small_b) {
-        const std::uint32_t bucket_a = ia;
-        const std::uint32_t bucket_b = ib;
-        bucketSets(small_a ? a.buckets().data() : &bucket_a, small_a ? bucket_count_a : 1,
-                   small_b ? b.buckets().data() : &bucket_b, small_b ? bucket_count_b : 1);
-        continue;
-      }
-      if (to_leaves) {
-#if defined(__GNUC__) && defined(__x86_64__)
-        if (wide_vectors_) {
-          collideBucketsWide(a, na, b, nb, contact_distance_m, contacts, counters);
-          continue;
-        }
-#endif
-        collideBucketsPortable(a, na, b, nb, contact_distance_m, contacts, counters);
-        continue;
-      }
-      SphereContact& contact = contacts.add();
-      contact.node_a = ia;
-      contact.node_b = ib;
-      contact.level = std::max(na.level, nb.level);
-      const Sphere& sa = na.sphere;
-      const Sphere& sb = nb.sphere;
-      contact.normal = directionFrom(sb.center, sa.center);
-      contact.depth_m = least_overlap;
-      // Midway between the surfaces (grown by half the contact distance each) along the normal.
-      const Eigen::Vector3d surface_a = sa.center - (sa.radius + 0.5 * contact_distance_m) * contact.normal;
-      const Eigen::Vector3d surface_b = sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
-      contact.position = 0.5 * (surface_a + surface_b);
+      descent.collideWhereDescentEnds(pair, na, nb);
       continue;
     }
-    // Descend the node that is not done, the larger one if both may go on. Children are
-    // stacked last first, so that contacts come in depth-first order; each is written on
-    // top and kept if it is within reach. The stack grows only in the first queries.
+    // Descend the node that is not done, the larger one if both may go on.
     const bool split_a = !stop_a && (stop_b || na.sphere.radius >= nb.sphere.radius);
-    const NodeState& split = split_a ? na : nb;
-    if (stack_.size() < stacked + split.child_count) {
-      stack_.resize(std::max(2 * stack_.size(), stacked + split.child_count));
-    }
-    counters.node_pairs_tested += split.child_count;
-    if (split_a) {
-      for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
-        const Sphere& child = a.current(c, leaf_limit).sphere;
-        stack_[stacked] = {c, ib, to_leaves ? 0.0
-                                            : std::min(least_overlap,
-                                                       overlap(child, nb.sphere, contact_distance_m))};
-        stacked += withinReach(child, nb.sphere, contact_distance_m);
-      }
-    } else {
-      for (std::uint32_t c = nb.first_child + nb.child_count; c-- > nb.first_child;) {
-        const Sphere& child = b.current(c, leaf_limit).sphere;
-        stack_[stacked] = {ia, c, to_leaves ? 0.0
-                                            : std::min(least_overlap,
-                                                       overlap(na.sphere, child, contact_distance_m))};
-        stacked += withinReach(na.sphere, child, contact_distance_m);
-      }
-    }
+    stacked = descent.stackChildrenInReach(stack_, stacked, pair, na, nb, split_a);
   }
 }
 

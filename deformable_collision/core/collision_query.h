@@ -75,6 +75,8 @@ class HierarchyQuery {
     std::uint32_t node_b = 0;
     double least_overlap_m = 0.0;  ///< Above the leaves: see collide().
   };
+  /// One query's state and the steps of its descent (collision_query.cpp).
+  struct Descent;
 
   bool wide_vectors_ = false;
   std::vector<PendingPair> stack_;
