@@ -3,7 +3,6 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <deque>
 #include <stdexcept>
 #include <string>
 
@@ -75,17 +74,35 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
 }
 
 void SphereTree::build(const SphereTreeConfig& config) {
+  gatherClusterPoints();
+  const std::uint32_t first_branch = addRootAndBranches();
+  // Breadth first: children go to the end of nodes_, so walking nodes_ in order visits
+  // each node after its parent and splits every node added on the way.
+  for (std::uint32_t index = first_branch; index < nodes_.size(); ++index) {
+    const SphereNode& node = nodes_[index];
+    max_level_ = std::max<int>(max_level_, node.level);
+    if (node.point_count <= static_cast<std::uint32_t>(config.leaf_size)) continue;
+    sortAlongLongestAxis(node);
+    addChildren(index, static_cast<std::uint32_t>(config.branching));
+  }
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i) computeRestData(i);
+}
+
+void SphereTree::gatherClusterPoints() {
   const ShapeMatchingBody& body = *body_;
-  const std::size_t cluster_count = body.clusterCount();
-  for (std::size_t k = 0; k < cluster_count; ++k) {
+  for (std::size_t k = 0; k < body.clusterCount(); ++k) {
     const Cluster& cluster = body.cluster(k);
     for (std::uint32_t slot = 0; slot < cluster.points.size(); ++slot) {
       point_indices_.push_back(cluster.points[slot]);
       point_slots_.push_back(slot);
     }
   }
+}
 
-  std::deque<std::uint32_t> to_split;
+std::uint32_t SphereTree::addRootAndBranches() {
+  const ShapeMatchingBody& body = *body_;
+  const std::size_t cluster_count = body.clusterCount();
+  // One cluster is its own object's root; several share a root over all their points.
   if (cluster_count > 1) {
     SphereNode root;
     root.point_count = static_cast<std::uint32_t>(point_indices_.size());
@@ -101,58 +118,54 @@ void SphereTree::build(const SphereTreeConfig& config) {
     branch.first_point = offset;
     branch.point_count = static_cast<std::uint32_t>(body.cluster(k).points.size());
     offset += branch.point_count;
-    to_split.push_back(static_cast<std::uint32_t>(nodes_.size()));
     nodes_.push_back(branch);
   }
+  return cluster_count > 1 ? 1 : 0;
+}
 
-  const auto& rest = body.restPositions();
-  while (!to_split.empty()) {
-    const std::uint32_t index = to_split.front();
-    to_split.pop_front();
-    const SphereNode parent = nodes_[index];
-    max_level_ = std::max<int>(max_level_, parent.level);
-    if (parent.point_count <= static_cast<std::uint32_t>(config.leaf_size)) continue;
-
-    const auto begin = static_cast<std::ptrdiff_t>(parent.first_point);
-    const auto end = begin + parent.point_count;
-    Eigen::AlignedBox3d box;
-    for (auto s = begin; s < end; ++s) box.extend(rest[point_indices_[s]]);
-    Eigen::Index axis = 0;
-    box.sizes().maxCoeff(&axis);
-    // Slots move with their points: sort a permutation of the range, then apply it.
-    std::vector<std::uint32_t> order(parent.point_count);
-    for (std::uint32_t i = 0; i < parent.point_count; ++i) order[i] = i;
-    std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-      const std::uint32_t pa = point_indices_[begin + a];
-      const std::uint32_t pb = point_indices_[begin + b];
-      return rest[pa][axis] < rest[pb][axis] || (rest[pa][axis] == rest[pb][axis] && pa < pb);
-    });
-    std::vector<std::uint32_t> indices(parent.point_count);
-    std::vector<std::uint32_t> slots(parent.point_count);
-    for (std::uint32_t i = 0; i < parent.point_count; ++i) {
-      indices[i] = point_indices_[begin + order[i]];
-      slots[i] = point_slots_[begin + order[i]];
-    }
-    std::copy(indices.begin(), indices.end(), point_indices_.begin() + begin);
-    std::copy(slots.begin(), slots.end(), point_slots_.begin() + begin);
-
-    const auto children =
-        std::min<std::uint32_t>(static_cast<std::uint32_t>(config.branching), parent.point_count);
-    nodes_[index].first_child = static_cast<std::uint32_t>(nodes_.size());
-    nodes_[index].child_count = children;
-    for (std::uint32_t c = 0; c < children; ++c) {
-      SphereNode child;
-      child.cluster = parent.cluster;
-      child.level = static_cast<std::uint16_t>(parent.level + 1);
-      const std::uint32_t from = parent.point_count * c / children;
-      const std::uint32_t to = parent.point_count * (c + 1) / children;
-      child.first_point = parent.first_point + from;
-      child.point_count = to - from;
-      to_split.push_back(static_cast<std::uint32_t>(nodes_.size()));
-      nodes_.push_back(child);
-    }
+void SphereTree::sortAlongLongestAxis(const SphereNode& node) {
+  const auto& rest = body_->restPositions();
+  const auto begin = static_cast<std::ptrdiff_t>(node.first_point);
+  const auto end = begin + node.point_count;
+  Eigen::AlignedBox3d box;
+  for (auto s = begin; s < end; ++s) box.extend(rest[point_indices_[s]]);
+  Eigen::Index axis = 0;
+  box.sizes().maxCoeff(&axis);
+  // Slots move with their points: sort a permutation of the range, then apply it. Equal
+  // coordinates are ordered by point index, so that the split does not depend on the sort.
+  std::vector<std::uint32_t> order(node.point_count);
+  for (std::uint32_t i = 0; i < node.point_count; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    const std::uint32_t pa = point_indices_[begin + a];
+    const std::uint32_t pb = point_indices_[begin + b];
+    return rest[pa][axis] < rest[pb][axis] || (rest[pa][axis] == rest[pb][axis] && pa < pb);
+  });
+  std::vector<std::uint32_t> indices(node.point_count);
+  std::vector<std::uint32_t> slots(node.point_count);
+  for (std::uint32_t i = 0; i < node.point_count; ++i) {
+    indices[i] = point_indices_[begin + order[i]];
+    slots[i] = point_slots_[begin + order[i]];
   }
-  for (std::uint32_t i = 0; i < nodes_.size(); ++i) computeRestData(i);
+  std::copy(indices.begin(), indices.end(), point_indices_.begin() + begin);
+  std::copy(slots.begin(), slots.end(), point_slots_.begin() + begin);
+}
+
+void SphereTree::addChildren(std::uint32_t index, std::uint32_t branching) {
+  // A copy: adding the children may move nodes_.
+  const SphereNode parent = nodes_[index];
+  const auto children = std::min<std::uint32_t>(branching, parent.point_count);
+  nodes_[index].first_child = static_cast<std::uint32_t>(nodes_.size());
+  nodes_[index].child_count = children;
+  for (std::uint32_t c = 0; c < children; ++c) {
+    SphereNode child;
+    child.cluster = parent.cluster;
+    child.level = static_cast<std::uint16_t>(parent.level + 1);
+    const std::uint32_t from = parent.point_count * c / children;
+    const std::uint32_t to = parent.point_count * (c + 1) / children;
+    child.first_point = parent.first_point + from;
+    child.point_count = to - from;
+    nodes_.push_back(child);
+  }
 }
 
 void SphereTree::orderLeaves() {

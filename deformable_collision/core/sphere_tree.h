@@ -173,6 +173,15 @@ class SphereTree {
   };
 
   void build(const SphereTreeConfig& config);
+  /// The clusters' points, cluster by cluster, in pointIndices() with their cluster slots.
+  void gatherClusterPoints();
+  /// The object's root (if it has several clusters) and one branch per cluster; returns
+  /// the first branch's index.
+  std::uint32_t addRootAndBranches();
+  /// Orders the node's slots along the longest axis of its points' rest box.
+  void sortAlongLongestAxis(const SphereNode& node);
+  /// Splits the node's slots into up to `branching` equal parts, one child each.
+  void addChildren(std::uint32_t index, std::uint32_t branching);
   void computeRestData(std::uint32_t index);
   const NodeState& updateSphere(std::uint32_t index);
   const NodeState& updateWithLeaves(std::uint32_t index, std::uint32_t leaf_limit);
