@@ -215,7 +215,8 @@ struct ClosestPair {
 /// Whether a pair of the leaves' points is closer than `pair.squared_distance`, and then
 /// the closest in `pair`: all pairs at once, eight of b's points per instruction.
 [[gnu::always_inline]] inline bool closestPairAllAtOnce(const LeafPoints& a, const LeafPoints& b,
-                                                        ClosestPair& pair, QueryCounters& counters) {
+                                                        ClosestPair& pair,
+                                                        QueryCounters& counters) {
   counters.point_tests += a.count * b.count;
   if (b.count <= 8) {
     return closestPairOfEightAvx512(a.x, a.y, a.z, a.count, b.x, b.y, b.z, b.count,
@@ -504,8 +505,10 @@ struct HierarchyQuery::Descent {
     contact.normal = directionFrom(sb.center, sa.center);
     contact.depth_m = pair.least_overlap_m;
     // Midway between the surfaces (grown by half the contact distance each) along the normal.
-    const Eigen::Vector3d surface_a = sa.center - (sa.radius + 0.5 * contact_distance_m) * contact.normal;
-    const Eigen::Vector3d surface_b = sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
+    const Eigen::Vector3d surface_a =
+        sa.center - (sa.radius + 0.5 * contact_distance_m) * contact.normal;
+    const Eigen::Vector3d surface_b =
+        sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
     contact.position = 0.5 * (surface_a + surface_b);
   }
 
@@ -582,15 +585,8 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              ContactSink& contacts, QueryCounters& counters) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
-  const Descent descent{a,
-                        b,
-                        level,
-                        contact_distance_m,
-                        contacts,
-                        counters,
-                        wide_vectors_,
-                        to_leaves,
-                        to_leaves ? kBucketLeaves : 0,
+  const Descent descent{a, b, level, contact_distance_m, contacts, counters, wide_vectors_,
+                        to_leaves, to_leaves ? kBucketLeaves : 0,
                         to_leaves && a.buckets().size() <= kBucketLeaves,
                         to_leaves && b.buckets().size() <= kBucketLeaves};
   const std::uint32_t leaf_limit = descent.leaf_limit;
