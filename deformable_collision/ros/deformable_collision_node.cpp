@@ -6,6 +6,7 @@
 #include <algorithm>
 
 #include "deformable_collision/core/point_spacing.h"
+#include "deformable_collision/ros/cloud_transform.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace deformable_collision {
@@ -16,6 +17,10 @@ constexpr std::chrono::seconds kReportPeriod(5);
 constexpr double kThrottlePeriodS = std::chrono::duration<double>(kReportPeriod).count();
 /// Per object: enough for a sensor at 30 Hz whose tf lags by a few frames.
 constexpr std::size_t kMaxAwaitingClouds = 8;
+/// The listener's subscriptions to /tf and /tf_static are made when the node starts, and on
+/// a loaded machine their first transforms can take about this long: before, no frame is
+/// known, and an unknown frame only means that tf has not filled yet.
+constexpr double kTfFillMinimumS = 1.0;
 
 NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   XmlRpc::XmlRpcValue params;
@@ -56,6 +61,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
     : node_handle_(node_handle),
       private_handle_(private_handle),
       config_(loadConfig(private_handle)),
+      started_(Clock::now()),
       scene_(config_.scene),
       tf_listener_(tf_buffer_, node_handle) {
   contacts_publisher_ = private_handle_.advertise<ContactArray>("contacts", 10);
@@ -91,8 +97,14 @@ void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cl
   ++stats_message_.clouds_received;
   const auto arrival = Clock::now();
   // Behind older clouds that wait for their transform, in arrival order: a tracked object
-  // must not step back, and a sensor whose tf always lags keeps every cloud.
+  // must not step back, and a sensor whose tf always lags keeps every cloud. A cloud in a
+  // frame tf does not know would only take the place of one that can still be placed.
   if (!slot.awaiting_transform.empty()) {
+    const std::string problem = unknownFrameProblem(slot, cloud->header.frame_id);
+    if (!problem.empty()) {
+      dropCloud(slot, ros::console::levels::Error, problem);
+      return;
+    }
     if (slot.awaiting_transform.size() == kMaxAwaitingClouds) {
       slot.awaiting_transform.pop_front();
       dropCloud(slot, ros::console::levels::Warn,
@@ -105,6 +117,26 @@ void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cl
   if (!processCloud(index, *cloud, arrival, config_.tf_wait_s == 0.0)) {
     slot.awaiting_transform.push_back({cloud, arrival});
   }
+}
+
+bool DeformableCollisionNode::tfFilling() const {
+  // The longer of the two: a tf_wait_s above the minimum says that the transforms of this
+  // setup may lag that long, and at start-up that includes the first one naming a frame.
+  const double fill_s = std::max(config_.tf_wait_s, kTfFillMinimumS);
+  return std::chrono::duration<double>(Clock::now() - started_).count() < fill_s;
+}
+
+const std::string& DeformableCollisionNode::targetFrame(const ObjectSlot& slot) const {
+  return slot.params.object.kind == ObjectKind::kKinematic ? slot.params.follow_frame
+                                                           : config_.fixed_frame;
+}
+
+std::string DeformableCollisionNode::unknownFrameProblem(const ObjectSlot& slot,
+                                                         const std::string& frame) const {
+  if (frame.empty() || frame == targetFrame(slot) || tfFilling() || tf_buffer_._frameExists(frame)) {
+    return "";
+  }
+  return "tf knows no frame '" + frame + "', so the cloud is dropped without waiting tf_wait_s";
 }
 
 void DeformableCollisionNode::retryAwaitingClouds() {
@@ -179,9 +211,8 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
                   " (a tracked object keeps its points; on_cloud: reset takes a new shape)");
   }
   const bool kinematic = slot.params.object.kind == ObjectKind::kKinematic;
-  const std::string& target_frame = kinematic ? slot.params.follow_frame : config_.fixed_frame;
   std::string problem;
-  switch (transformPoints(target_frame, cloud, last_try, cloud_points_, problem)) {
+  switch (transformPoints(slot, cloud, last_try, cloud_points_, problem)) {
     case TransformOutcome::kDone:
       break;
     case TransformOutcome::kNotYet:
@@ -266,25 +297,29 @@ void DeformableCollisionNode::warnIfPorous(const std::string& name,
 }
 
 DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoints(
-    const std::string& target_frame, const sensor_msgs::PointCloud2& cloud, bool last_try,
+    const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud, bool last_try,
     std::vector<Eigen::Vector3d>& points, std::string& problem) {
+  const std::string& target_frame = targetFrame(slot);
   if (cloud.header.frame_id.empty()) {
     problem = "header.frame_id is empty";
     return TransformOutcome::kRefused;
   }
   if (cloud.header.frame_id == target_frame) return TransformOutcome::kDone;
-  std::optional<Eigen::Isometry3d> transform;
-  try {
-    transform = toIsometry(
-        tf_buffer_.lookupTransform(target_frame, cloud.header.frame_id, cloud.header.stamp).transform);
-  } catch (const tf2::TransformException& e) {
-    // The frame, or its pose at the cloud's stamp, may still come: a sensor's tf is often
-    // published after its data.
+  const CloudTransformLookup lookup =
+      lookUpCloudTransform(tf_buffer_, target_frame, cloud.header.frame_id, cloud.header.stamp);
+  if (lookup.status == CloudTransformStatus::kUnknownFrame) {
+    problem = unknownFrameProblem(slot, cloud.header.frame_id);
+    if (!problem.empty()) return TransformOutcome::kRefused;
+  }
+  if (lookup.status != CloudTransformStatus::kFound) {
+    // The pose at the cloud's stamp may still come: a sensor's tf is often published after
+    // its data.
     if (!last_try) return TransformOutcome::kNotYet;
     problem = "no transform from '" + cloud.header.frame_id + "' to '" + target_frame +
-              "' within tf_wait_s = " + std::to_string(config_.tf_wait_s) + " s: " + e.what();
+              "' within tf_wait_s = " + std::to_string(config_.tf_wait_s) + " s: " + lookup.error;
     return TransformOutcome::kMissing;
   }
+  const std::optional<Eigen::Isometry3d> transform = toIsometry(lookup.transform);
   if (!transform) {
     problem = "the transform from '" + cloud.header.frame_id + "' to '" + target_frame +
               "' is not finite";

@@ -63,6 +63,12 @@ class DeformableCollisionNode {
   enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
 
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
+  /// Whether tf may still be learning its frames, so that an unknown frame may yet come.
+  bool tfFilling() const;
+  /// The frame a cloud of this object is placed in: its follow_frame or the fixed frame.
+  const std::string& targetFrame(const ObjectSlot& slot) const;
+  /// Why a cloud cannot ever be placed because tf knows no such frame; empty if it can be.
+  std::string unknownFrameProblem(const ObjectSlot& slot, const std::string& frame) const;
   /// Tries the clouds that wait for their transform, in order; drops those that waited
   /// too long.
   void retryAwaitingClouds();
@@ -78,8 +84,9 @@ class DeformableCollisionNode {
   void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
   /// Points far apart compared with the contact distance let other clouds through: say so.
   void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
-  /// kNotYet: the transform may still come; kMissing: it did not come in time.
-  TransformOutcome transformPoints(const std::string& target_frame,
+  /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
+  /// it never will (no frame, an unknown frame once tf has filled, not finite).
+  TransformOutcome transformPoints(const ObjectSlot& slot,
                                   const sensor_msgs::PointCloud2& cloud, bool last_try,
                                   std::vector<Eigen::Vector3d>& points, std::string& problem);
   void followFrames();
@@ -91,6 +98,7 @@ class DeformableCollisionNode {
   ros::NodeHandle node_handle_;
   ros::NodeHandle private_handle_;
   NodeConfig config_;
+  Clock::time_point started_;
   Scene scene_;
   std::vector<ObjectSlot> slots_;
   tf2_ros::Buffer tf_buffer_;

@@ -1,9 +1,10 @@
-// Faults the nodelet must survive (rostest faults.test): late and missing tf, a publisher
-// process killed and started again, a tracked cloud of another size, a cloud of 10 million
-// points, and services hammered from several clients at once. Each test meets its own
-// object of faults_test.yaml and checks the node's ~stats and outputs; every wait is on an
-// event with a timeout. The manager killed and respawned has its own rostest
-// (manager_respawn.test), as a respawn would start the other cases on a new node.
+// Faults the nodelet must survive (rostest faults.test): late and missing tf, clouds in a
+// frame tf does not know among good ones, a publisher process killed and started again, a
+// tracked cloud of another size, a cloud of 10 million points, and services hammered from
+// several clients at once. Each test meets its own object of faults_test.yaml and checks
+// the node's ~stats and outputs; every wait is on an event with a timeout. The manager
+// killed and respawned has its own rostest (manager_respawn.test), as a respawn would start
+// the other cases on a new node.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
@@ -13,10 +14,12 @@
 #include <tf2_msgs/TFMessage.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <deque>
 #include <filesystem>
 #include <thread>
+#include <vector>
 
 #include "deformable_collision/SetLevel.h"
 #include "fault_test_fixture.h"
@@ -27,7 +30,8 @@ namespace deformable_collision {
 namespace test {
 namespace {
 
-constexpr double kTfWaitS = 1.0;  // faults_test.yaml
+constexpr double kTfWaitS = 2.0;  // faults_test.yaml
+constexpr double kRateHz = 50.0;  // faults_test.yaml
 
 /// A child process, stopped by its pid (SIGTERM, then waited for) when it goes out of scope.
 class ChildProcess {
@@ -73,6 +77,35 @@ class FaultsTest : public FaultTestFixture {
     return false;
   }
 
+  /// A publisher on /tf that the node's listener is connected to.
+  ros::Publisher tfPublisher() {
+    ros::Publisher tf = handle_.advertise<tf2_msgs::TFMessage>("/tf", 2);
+    EXPECT_TRUE(waitFor([&] { return tf.getNumSubscribers() > 0; }));
+    return tf;
+  }
+
+  /// Poses of `frame`, 1 m above the world's origin, at each stamp.
+  static tf2_msgs::TFMessage posesOf(const std::string& frame, const std::vector<ros::Time>& stamps) {
+    tf2_msgs::TFMessage poses;
+    for (const ros::Time& stamp : stamps) {
+      geometry_msgs::TransformStamped pose;
+      pose.header.stamp = stamp;
+      pose.header.frame_id = "world";
+      pose.child_frame_id = frame;
+      pose.transform.translation.z = 1.0;
+      pose.transform.rotation.w = 1.0;
+      poses.transforms.push_back(pose);
+    }
+    return poses;
+  }
+
+  /// Waits until the node is past its start-up grace, max(tf_wait_s, 1 s), in which a frame
+  /// tf does not know may still come. Cycles at rate_hz never count faster than time.
+  bool pastStartUpGrace() {
+    const auto grace_cycles = static_cast<std::uint64_t>(kRateHz * std::max(kTfWaitS, 1.0)) + 1;
+    return waitFor([&] { return stats_->cycles >= grace_cycles; });
+  }
+
   ros::Subscriber log_subscriber_;
   std::deque<rosgraph_msgs::Log::ConstPtr> log_;
 };
@@ -92,20 +125,9 @@ TEST_F(FaultsTest, CloudsWaitInOrderForATransformThatComesLate) {
   // The sensor's poses come five cycles later, stamped around the clouds' stamps.
   ASSERT_TRUE(cyclesPass(5));
   EXPECT_FALSE(hasShape("late")) << "placed without a transform";
-  ros::Publisher tf = handle_.advertise<tf2_msgs::TFMessage>("/tf", 2);
-  ASSERT_TRUE(waitFor([&] { return tf.getNumSubscribers() > 0; }));
-  tf2_msgs::TFMessage poses;
-  for (const ros::Time& stamp : {clouds.front().header.stamp - ros::Duration(0.1),
-                                 clouds.back().header.stamp + ros::Duration(0.1)}) {
-    geometry_msgs::TransformStamped pose;
-    pose.header.stamp = stamp;
-    pose.header.frame_id = "world";
-    pose.child_frame_id = "late_sensor";
-    pose.transform.translation.z = 1.0;
-    pose.transform.rotation.w = 1.0;
-    poses.transforms.push_back(pose);
-  }
-  tf.publish(poses);
+  ros::Publisher tf = tfPublisher();
+  tf.publish(posesOf("late_sensor", {clouds.front().header.stamp - ros::Duration(0.1),
+                                     clouds.back().header.stamp + ros::Duration(0.1)}));
   ASSERT_TRUE(waitFor([&] { return hasShape("late"); }, 3 * kTfWaitS)) << "the clouds were not applied";
   ASSERT_TRUE(waitFor([&] {
     return deformed("late") && (meanOf(*deformed("late")) - Eigen::Vector3d(0.1, 0.0, 1.04)).norm() < 1e-4;
@@ -113,12 +135,32 @@ TEST_F(FaultsTest, CloudsWaitInOrderForATransformThatComesLate) {
   EXPECT_EQ(stats_->clouds_rejected, rejected) << "a waiting cloud was dropped";
 }
 
-TEST_F(FaultsTest, ACloudWithoutTransformIsDroppedAfterTfWaitWithAWarning) {
+TEST_F(FaultsTest, ACloudWhoseSensorPoseNeverComesIsDroppedAfterTfWaitWithAWarning) {
   ros::Publisher ghost = input("/faults/ghost");
+  ros::Publisher anchor = input("/faults/anchor");
+  ros::Publisher tf = tfPublisher();
+  // tf learns ghost_sensor from poses around one stamp, shown by a cloud of another object
+  // placed with them. tf and clouds come on connections of their own: a cloud that came
+  // first is dropped as in a frame tf does not know, and sent again.
+  PointCloud2 placed = cloudOf(cubePoints(0.0), "ghost_sensor");
+  tf.publish(posesOf("ghost_sensor", {placed.header.stamp - ros::Duration(0.1),
+                                      placed.header.stamp + ros::Duration(0.1)}));
+  const std::uint64_t received_before_anchor = stats_->clouds_received;
+  std::uint64_t anchors_sent = 0;
+  for (; anchors_sent < 20 && !hasShape("anchor"); ++anchors_sent) {
+    anchor.publish(placed);
+    waitFor([&] { return hasShape("anchor"); }, 0.5);
+  }
+  ASSERT_TRUE(hasShape("anchor")) << "the node did not learn ghost_sensor";
+  ASSERT_TRUE(waitFor([&] { return stats_->clouds_received >= received_before_anchor + anchors_sent; }));
+
+  // A cloud stamped after the newest pose: its pose at its stamp never comes.
+  PointCloud2 lost = cloudOf(cubePoints(0.0), "ghost_sensor");
+  lost.header.stamp = placed.header.stamp + ros::Duration(0.5);
   const std::uint64_t received = stats_->clouds_received;
   const std::uint64_t rejected = stats_->clouds_rejected;
   const ros::WallTime sent = ros::WallTime::now();
-  ghost.publish(cloudOf(cubePoints(0.0), "ghost_sensor"));
+  ghost.publish(lost);
   ASSERT_TRUE(waitFor([&] { return stats_->clouds_rejected > rejected; }));
   const double waited_s = (ros::WallTime::now() - sent).toSec();
   EXPECT_GE(waited_s, 0.9 * kTfWaitS);
@@ -127,6 +169,46 @@ TEST_F(FaultsTest, ACloudWithoutTransformIsDroppedAfterTfWaitWithAWarning) {
   EXPECT_EQ(stats_->clouds_rejected, rejected + 1);
   EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::WARN, "/faults/ghost"); }, 5.0));
   EXPECT_FALSE(hasShape("ghost"));
+}
+
+TEST_F(FaultsTest, CloudsInAFrameTfDoesNotKnowAreDroppedAtOnceAndBlockNoGoodCloud) {
+  ASSERT_TRUE(pastStartUpGrace());
+  ros::Publisher mixed = input("/faults/mixed");
+  deformed("mixed");
+  const std::uint64_t received = stats_->clouds_received;
+  const std::uint64_t rejected = stats_->clouds_rejected;
+  // A second publisher on the same topic sends a cloud in a frame nobody publishes every 0.3 s.
+  ros::NodeHandle wrong_handle;
+  ros::Publisher wrong = wrong_handle.advertise<PointCloud2>("/faults/mixed", 2);
+  ASSERT_TRUE(waitFor([&] { return wrong.getNumSubscribers() > 0; }));
+  std::uint64_t wrong_sent = 0;
+  const PointCloud2 wrong_cloud = cloudOf(cubePoints(0.5), "no_such_frame");
+  ros::WallTimer wrong_timer = wrong_handle.createWallTimer(
+      ros::WallDuration(0.3), [&](const ros::WallTimerEvent&) {
+        wrong.publish(wrong_cloud);
+        ++wrong_sent;
+      });
+  ASSERT_TRUE(waitFor([&] { return wrong_sent > 0; }));
+
+  // Good clouds, each a new rest shape elsewhere, while the wrong ones keep coming: each is
+  // applied well before a cloud that waited tf_wait_s in front of it would have left.
+  std::uint64_t good_sent = 0;
+  while (wrong_sent < 5) {
+    const double x = good_sent % 2 == 0 ? 0.3 : 0.32;
+    mixed.publish(cloudOf(cubePoints(x), "world"));
+    ++good_sent;
+    ASSERT_TRUE(waitFor([&] {
+      return deformed("mixed") && (meanOf(*deformed("mixed")) - Eigen::Vector3d(x, 0.0, 0.04)).norm() < 1e-4;
+    }, 0.5 * kTfWaitS)) << "good cloud " << good_sent << " waited behind a cloud in an unknown frame";
+  }
+  wrong_timer.stop();
+  const std::uint64_t wrong_total = wrong_sent;
+  ASSERT_TRUE(waitFor([&] { return stats_->clouds_received >= received + good_sent + wrong_total; }));
+  EXPECT_EQ(stats_->clouds_received, received + good_sent + wrong_total);
+  ASSERT_TRUE(waitFor([&] { return stats_->clouds_rejected >= rejected + wrong_total; }));
+  EXPECT_TRUE(cyclesPass(5));
+  EXPECT_EQ(stats_->clouds_rejected, rejected + wrong_total) << "a good cloud was dropped";
+  EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/mixed"); }, 5.0));
 }
 
 TEST_F(FaultsTest, ATrackedCloudOfAnotherSizeIsRefusedAndTheNextGoodOneTaken) {
