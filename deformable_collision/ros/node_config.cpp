@@ -158,19 +158,19 @@ class ParamReader {
   std::set<std::string> used_;
 };
 
-ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
-  ParamReader read(entry, path);
-  ObjectParams params;
-  ObjectConfig& object = params.object;
-  object.name = read.requiredText("name");
+/// Name, topic and follow_frame: what names the object to ROS, each checked as ROS and tf2
+/// would take it.
+void readObjectNames(ParamReader& read, ObjectParams& params) {
+  std::string& name = params.object.name;
+  name = read.requiredText("name");
   // The name becomes a topic (~deformed/<name>) and a marker namespace.
   const bool graph_name =
-      std::isalpha(static_cast<unsigned char>(object.name[0])) &&
-      std::all_of(object.name.begin(), object.name.end(), [](char c) {
+      std::isalpha(static_cast<unsigned char>(name[0])) &&
+      std::all_of(name.begin(), name.end(), [](char c) {
         return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
       });
   if (!graph_name) {
-    ParamReader::fail(read.name("name"), "= '" + object.name +
+    ParamReader::fail(read.name("name"), "= '" + name +
                                              "' must start with a letter and hold only letters, "
                                              "digits and '_' (it names the topic ~deformed/<name>)");
   }
@@ -185,22 +185,30 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
     ParamReader::fail(read.name("follow_frame"), "= '" + params.follow_frame +
                                                      "' starts with '/', which tf2 refuses");
   }
-  const bool dynamic = read.flag("dynamic", true);
+}
 
-  const std::string on_cloud = read.text("on_cloud", toString(OnCloud::kIgnore));
-  const auto parsed_on_cloud = parseOnCloud(on_cloud);
-  if (!parsed_on_cloud) {
-    ParamReader::fail(read.name("on_cloud"), "= '" + on_cloud + "' must be " + enumNameList(kOnCloudNames));
-  }
-  params.on_cloud = *parsed_on_cloud;
+/// The deformation mode as given, and whether it was given at all: a kinematic object is
+/// rigid whatever the default, but refuses an explicit other mode.
+struct ModeParam {
+  std::string text;
+  DeformationMode mode;
+  bool given;
+};
 
-  const bool mode_given = read.find("mode") != nullptr;
+ModeParam readMode(ParamReader& read) {
+  const bool given = read.find("mode") != nullptr;
   const std::string mode = read.text("mode", toString(DeformationMode::kLinear));
-  const auto parsed_mode = parseDeformationMode(mode);
-  if (!parsed_mode) {
+  const auto parsed = parseDeformationMode(mode);
+  if (!parsed) {
     ParamReader::fail(read.name("mode"), "= '" + mode + "' must be " + enumNameList(kDeformationModeNames));
   }
+  return {mode, *parsed, given};
+}
 
+/// The kind follows from `dynamic`, `follow_frame` and `on_cloud`; the combinations that
+/// contradict each other are refused by the key that conflicts.
+ObjectKind objectKind(const ParamReader& read, const ObjectParams& params, bool dynamic,
+                      const ModeParam& mode) {
   if (dynamic) {
     if (!params.follow_frame.empty()) {
       ParamReader::fail(read.name("follow_frame"),
@@ -212,23 +220,23 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
                         "= 'track' needs dynamic: false (a tracked object follows its clouds, "
                         "a dynamic one is simulated)");
     }
-    object.kind = ObjectKind::kDynamic;
-  } else if (!params.follow_frame.empty()) {
+    return ObjectKind::kDynamic;
+  }
+  if (!params.follow_frame.empty()) {
     if (params.on_cloud == OnCloud::kTrack) {
       ParamReader::fail(read.name("on_cloud"),
                         "= 'track' conflicts with follow_frame (the frame moves the object)");
     }
-    if (mode_given && *parsed_mode != DeformationMode::kRigid) {
-      ParamReader::fail(read.name("mode"), "= '" + mode +
+    if (mode.given && mode.mode != DeformationMode::kRigid) {
+      ParamReader::fail(read.name("mode"), "= '" + mode.text +
                                                "' but an object that follows a frame is rigid");
     }
-    object.kind = ObjectKind::kKinematic;
-  } else {
-    object.kind = params.on_cloud == OnCloud::kTrack ? ObjectKind::kTracked : ObjectKind::kStatic;
+    return ObjectKind::kKinematic;
   }
+  return params.on_cloud == OnCloud::kTrack ? ObjectKind::kTracked : ObjectKind::kStatic;
+}
 
-  ShapeMatchingConfig& shape = object.shape;
-  shape.mode = object.kind == ObjectKind::kKinematic ? DeformationMode::kRigid : *parsed_mode;
+void readShapeMatching(ParamReader& read, ShapeMatchingConfig& shape) {
   shape.clusters = static_cast<int>(read.integer("clusters", shape.clusters, 1, 4096));
   shape.stiffness = read.number("stiffness", shape.stiffness, 0.0, 1.0);
   shape.beta = read.number("beta", shape.beta, 0.0, 1.0);
@@ -237,6 +245,28 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
   shape.preserve_volume = read.flag("preserve_volume", shape.preserve_volume);
   shape.cluster_overlap_ratio =
       read.number("cluster_overlap_ratio", shape.cluster_overlap_ratio, 0.0, 1.0);
+}
+
+/// One entry of `objects`, read in the order of its checks, so that the first problem of an
+/// entry is the one reported.
+ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
+  ParamReader read(entry, path);
+  ObjectParams params;
+  readObjectNames(read, params);
+  const bool dynamic = read.flag("dynamic", true);
+
+  const std::string on_cloud = read.text("on_cloud", toString(OnCloud::kIgnore));
+  const auto parsed_on_cloud = parseOnCloud(on_cloud);
+  if (!parsed_on_cloud) {
+    ParamReader::fail(read.name("on_cloud"), "= '" + on_cloud + "' must be " + enumNameList(kOnCloudNames));
+  }
+  params.on_cloud = *parsed_on_cloud;
+  const ModeParam mode = readMode(read);
+
+  ObjectConfig& object = params.object;
+  object.kind = objectKind(read, params, dynamic, mode);
+  object.shape.mode = object.kind == ObjectKind::kKinematic ? DeformationMode::kRigid : mode.mode;
+  readShapeMatching(read, object.shape);
   read.finish();
   return params;
 }
