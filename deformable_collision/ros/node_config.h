@@ -43,8 +43,9 @@ struct NodeConfig {
   std::string fixed_frame = "world";
   double rate_hz = 100.0;
   std::size_t max_points_per_object = 1000000;
-  /// How long a cloud waits for the transform of its stamp (a sensor frame published late,
-  /// or not yet at all) before it is dropped with a warning.
+  /// How long a cloud waits for the transform of its stamp (a sensor's pose published late)
+  /// before it is dropped with a warning. A cloud in a frame tf does not know at all is
+  /// dropped at once, once the node has run max(tf_wait_s, 1 s) and tf has filled.
   double tf_wait_s = 0.5;
   bool markers_colliding_only = false;
   SceneConfig scene;  ///< dt_s, gravity_mps2, level, contact_distance_m, friction, tree.
