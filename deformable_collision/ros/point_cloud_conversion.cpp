@@ -41,64 +41,63 @@ bool hostIsBigEndian() {
   return first == 0;
 }
 
-}  // namespace
-
-CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinitePoints policy,
-                                std::size_t max_points, std::vector<Eigen::Vector3d>& points) {
-  CloudReadResult result;
+/// Where x, y and z are in a point; an empty string, or what is wrong with the fields.
+std::string findCoordinateFields(const sensor_msgs::PointCloud2& cloud, CoordinateField (&fields)[3]) {
   std::ostringstream error;
-  CoordinateField fields[3];
   const char* names[3] = {"x", "y", "z"};
   for (int axis = 0; axis < 3; ++axis) {
     const auto found = std::find_if(cloud.fields.begin(), cloud.fields.end(),
                                     [&](const sensor_msgs::PointField& f) { return f.name == names[axis]; });
     if (found == cloud.fields.end()) {
       error << "field '" << names[axis] << "' is missing";
-      result.error = error.str();
-      return result;
+      return error.str();
     }
     if (found->datatype != sensor_msgs::PointField::FLOAT32 &&
         found->datatype != sensor_msgs::PointField::FLOAT64) {
       error << "field '" << names[axis] << "' has datatype " << int(found->datatype)
             << ", expected FLOAT32 (7) or FLOAT64 (8)";
-      result.error = error.str();
-      return result;
+      return error.str();
     }
     if (static_cast<std::uint64_t>(found->offset) + byteSize(found->datatype) > cloud.point_step) {
       error << "field '" << names[axis] << "' at offset " << found->offset
             << " does not fit in point_step " << cloud.point_step;
-      result.error = error.str();
-      return result;
+      return error.str();
     }
     fields[axis] = {found->offset, found->datatype};
   }
+  return "";
+}
 
+/// An empty string if the header's size fits max_points and its rows fit the data, checked
+/// before a byte is read, so that a huge or lying header costs nothing.
+std::string checkCloudSize(const sensor_msgs::PointCloud2& cloud, std::size_t max_points) {
+  std::ostringstream error;
   const std::uint64_t count = static_cast<std::uint64_t>(cloud.width) * cloud.height;
   if (count > max_points) {
     error << "cloud of " << count << " points exceeds max_points_per_object " << max_points;
-    result.error = error.str();
-    return result;
+    return error.str();
   }
   const std::uint64_t row_bytes = static_cast<std::uint64_t>(cloud.width) * cloud.point_step;
   if (count > 0 && cloud.row_step < row_bytes) {
     error << "row_step " << cloud.row_step << " is shorter than width " << cloud.width
           << " x point_step " << cloud.point_step;
-    result.error = error.str();
-    return result;
+    return error.str();
   }
   const std::uint64_t needed =
       count == 0 ? 0 : static_cast<std::uint64_t>(cloud.height - 1) * cloud.row_step + row_bytes;
   if (cloud.data.size() < needed) {
     error << "data has " << cloud.data.size() << " bytes, the header declares " << needed;
-    result.error = error.str();
-    return result;
+    return error.str();
   }
+  return "";
+}
 
-  points.clear();
-  // Rows of no points may still be many, over no data at all.
-  if (count == 0) return result;
+/// Reads every point of a cloud checked by checkCloudSize, counting the non-finite ones.
+void readCheckedPoints(const sensor_msgs::PointCloud2& cloud, const CoordinateField (&fields)[3],
+                       NonFinitePoints policy, std::vector<Eigen::Vector3d>& points,
+                       CloudReadResult& result) {
   const bool swap = static_cast<bool>(cloud.is_bigendian) != hostIsBigEndian();
-  points.reserve(count);
+  points.reserve(static_cast<std::size_t>(cloud.width) * cloud.height);
   for (std::uint32_t row = 0; row < cloud.height; ++row) {
     const std::uint8_t* row_start = cloud.data.data() + static_cast<std::size_t>(row) * cloud.row_step;
     for (std::uint32_t column = 0; column < cloud.width; ++column) {
@@ -115,6 +114,21 @@ CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinite
       points.push_back(p);
     }
   }
+}
+
+}  // namespace
+
+CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinitePoints policy,
+                                std::size_t max_points, std::vector<Eigen::Vector3d>& points) {
+  CloudReadResult result;
+  CoordinateField fields[3];
+  result.error = findCoordinateFields(cloud, fields);
+  if (result.error.empty()) result.error = checkCloudSize(cloud, max_points);
+  if (!result.ok()) return result;
+  points.clear();
+  // Rows of no points may still be many, over no data at all.
+  if (static_cast<std::uint64_t>(cloud.width) * cloud.height == 0) return result;
+  readCheckedPoints(cloud, fields, policy, points, result);
   return result;
 }
 
