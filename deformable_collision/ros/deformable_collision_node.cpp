@@ -185,6 +185,30 @@ void DeformableCollisionNode::dropCloud(ObjectSlot& slot, ros::console::levels::
   slot.drops_unreported = 0;
 }
 
+CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
+                                                        const sensor_msgs::PointCloud2& cloud) {
+  // A tracked object keeps non-finite points as unobserved slots, so that point i of every
+  // cloud is the same point even when the first cloud has holes (organized depth clouds).
+  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
+  CloudReadResult read =
+      readCloudPoints(cloud, tracked ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
+                      config_.max_points_per_object, cloud_points_);
+  if (!read.ok()) return read;
+  if (cloud_points_.empty()) {
+    read.error = "the cloud is empty";
+  } else if (tracked && slot.index && cloud_points_.size() != slot.tracked_cloud_size) {
+    read.error = "it has " + std::to_string(cloud_points_.size()) + " points, the first had " +
+                 std::to_string(slot.tracked_cloud_size) +
+                 " (a tracked object keeps its points; on_cloud: reset takes a new shape)";
+  }
+  return read;
+}
+
+void DeformableCollisionNode::selectTrackedPoints(const std::vector<std::uint32_t>& indices) {
+  tracked_points_.resize(indices.size());
+  for (std::size_t k = 0; k < indices.size(); ++k) tracked_points_[k] = cloud_points_[indices[k]];
+}
+
 DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     const sensor_msgs::PointCloud2& cloud, std::size_t index, Clock::time_point arrival,
     bool last_try) {
@@ -196,21 +220,8 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     dropCloud(slot, ros::console::levels::Error, problem);
     return CloudOutcome::kRejected;
   };
-
-  // A tracked object keeps non-finite points as unobserved slots, so that point i of every
-  // cloud is the same point even when the first cloud has holes (organized depth clouds).
-  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
-  const CloudReadResult read =
-      readCloudPoints(cloud, tracked ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
-                      config_.max_points_per_object, cloud_points_);
+  const CloudReadResult read = readObjectCloud(slot, cloud);
   if (!read.ok()) return reject(read.error);
-  if (cloud_points_.empty()) return reject("the cloud is empty");
-  if (tracked && !first && cloud_points_.size() != slot.tracked_cloud_size) {
-    return reject("it has " + std::to_string(cloud_points_.size()) + " points, the first had " +
-                  std::to_string(slot.tracked_cloud_size) +
-                  " (a tracked object keeps its points; on_cloud: reset takes a new shape)");
-  }
-  const bool kinematic = slot.params.object.kind == ObjectKind::kKinematic;
   std::string problem;
   switch (transformPoints(slot, cloud, last_try, cloud_points_, problem)) {
     case TransformOutcome::kDone:
@@ -224,26 +235,21 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
       return reject(problem);
   }
   // A kinematic object is placed by its frame's pose, which may come later too.
-  if (kinematic && !last_try &&
+  if (slot.params.object.kind == ObjectKind::kKinematic && !last_try &&
       !tf_buffer_.canTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))) {
     return CloudOutcome::kAwaitingTransform;
   }
-  std::vector<Eigen::Vector3d>* shape = &cloud_points_;
+  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
   std::vector<std::uint32_t> first_finite;
-  if (tracked) {
-    if (first) {
-      for (std::uint32_t i = 0; i < cloud_points_.size(); ++i) {
-        if (cloud_points_[i].allFinite()) first_finite.push_back(i);
-      }
-      if (first_finite.empty()) return reject("every point is non-finite");
+  if (tracked && first) {
+    for (std::uint32_t i = 0; i < cloud_points_.size(); ++i) {
+      if (cloud_points_[i].allFinite()) first_finite.push_back(i);
     }
-    const auto& indices = first ? first_finite : slot.tracked_indices;
-    tracked_points_.resize(indices.size());
-    for (std::size_t k = 0; k < indices.size(); ++k) tracked_points_[k] = cloud_points_[indices[k]];
-    shape = &tracked_points_;
+    if (first_finite.empty()) return reject("every point is non-finite");
   }
+  if (tracked) selectTrackedPoints(first ? first_finite : slot.tracked_indices);
   try {
-    applyCloud(slot, *shape, first);
+    applyCloud(slot, tracked ? tracked_points_ : cloud_points_, first);
   } catch (const std::exception& e) {
     return reject(e.what());
   }
@@ -359,10 +365,11 @@ void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
 }
 
 void DeformableCollisionNode::runCycle() {
-  const auto start = Clock::now();
+  CycleTimes times;
+  times.start = Clock::now();
   followFrames();
   scene_.cycle();
-  const auto cycled = Clock::now();
+  times.cycled = Clock::now();
   const CycleStats& cycle = scene_.stats();
   std_msgs::Header header;
   header.stamp = ros::Time::now();
@@ -374,14 +381,8 @@ void DeformableCollisionNode::runCycle() {
     fillContactArray(scene_, scene_.contacts(), cycle.level, *message);
     contacts_publisher_.publish(message);
   }
-  const auto contacts_published = Clock::now();
-  std::optional<Clock::time_point> oldest_input;
-  for (ObjectSlot& slot : slots_) {
-    if (slot.pending_since && (!oldest_input || *slot.pending_since < *oldest_input)) {
-      oldest_input = slot.pending_since;
-    }
-    slot.pending_since.reset();
-  }
+  times.contacts_published = Clock::now();
+  const std::optional<Clock::time_point> oldest_input = takeOldestInput();
 
   if (hierarchy_publisher_.getNumSubscribers() > 0 && scene_.objectCount() > 0) {
     auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
@@ -389,6 +390,23 @@ void DeformableCollisionNode::runCycle() {
                    *markers);
     hierarchy_publisher_.publish(markers);
   }
+  const std::size_t points = publishDeformed(header);
+  times.published = Clock::now();
+  publishStats(header, times, oldest_input, points);
+}
+
+std::optional<DeformableCollisionNode::Clock::time_point> DeformableCollisionNode::takeOldestInput() {
+  std::optional<Clock::time_point> oldest_input;
+  for (ObjectSlot& slot : slots_) {
+    if (slot.pending_since && (!oldest_input || *slot.pending_since < *oldest_input)) {
+      oldest_input = slot.pending_since;
+    }
+    slot.pending_since.reset();
+  }
+  return oldest_input;
+}
+
+std::size_t DeformableCollisionNode::publishDeformed(const std_msgs::Header& header) {
   std::size_t points = 0;
   for (const ObjectSlot& slot : slots_) {
     if (!slot.index) continue;
@@ -400,11 +418,17 @@ void DeformableCollisionNode::runCycle() {
     writeCloudPoints(positions, *cloud);
     slot.deformed.publish(cloud);
   }
-  const auto published = Clock::now();
+  return points;
+}
 
+void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const CycleTimes& times,
+                                           std::optional<Clock::time_point> oldest_input,
+                                           std::size_t points) {
+  const CycleStats& cycle = scene_.stats();
   Stats& stats = stats_message_;
+  // Cycles and overruns count whether or not anyone listens: a later subscriber sees all.
   ++stats.cycles;
-  const double cycle_ms = millisecondsBetween(start, published);
+  const double cycle_ms = millisecondsBetween(times.start, times.published);
   if (cycle_ms > 1000.0 / config_.rate_hz) ++stats.overruns;
   if (stats_publisher_.getNumSubscribers() == 0) return;
   stats.header = header;
@@ -413,9 +437,10 @@ void DeformableCollisionNode::runCycle() {
   stats.shape_matching_ms = cycle.shape_matching_ms;
   stats.detection_ms = cycle.detection_ms;
   stats.response_ms = cycle.response_ms;
-  stats.publish_ms = millisecondsBetween(cycled, published);
+  stats.publish_ms = millisecondsBetween(times.cycled, times.published);
   stats.cycle_ms = cycle_ms;
-  stats.input_latency_ms = oldest_input ? millisecondsBetween(*oldest_input, contacts_published) : 0.0;
+  stats.input_latency_ms =
+      oldest_input ? millisecondsBetween(*oldest_input, times.contacts_published) : 0.0;
   stats.objects = static_cast<std::uint32_t>(scene_.objectCount());
   stats.points = static_cast<std::uint32_t>(points);
   stats.objects_moved = static_cast<std::uint32_t>(cycle.objects_moved);

@@ -21,6 +21,7 @@
 #include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/hierarchy_markers.h"
 #include "deformable_collision/ros/node_config.h"
+#include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace deformable_collision {
 
@@ -81,6 +82,11 @@ class DeformableCollisionNode {
   /// `last_try`: a missing transform refuses the cloud instead of making it wait.
   CloudOutcome handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
                            Clock::time_point arrival, bool last_try);
+  /// Reads the cloud into cloud_points_; its error also says why the object cannot take it
+  /// (empty, or a tracked object's cloud of another size).
+  CloudReadResult readObjectCloud(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud);
+  /// tracked_points_: the points of cloud_points_ at `indices`, a tracked object's points.
+  void selectTrackedPoints(const std::vector<std::uint32_t>& indices);
   void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
   /// Points far apart compared with the contact distance let other clouds through: say so.
   void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
@@ -91,7 +97,21 @@ class DeformableCollisionNode {
                                   std::vector<Eigen::Vector3d>& points, std::string& problem);
   void followFrames();
   void onTimer(const ros::TimerEvent& event);
+  /// When the steps of one cycle ended, for ~stats.
+  struct CycleTimes {
+    Clock::time_point start;
+    Clock::time_point cycled;
+    Clock::time_point contacts_published;
+    Clock::time_point published;
+  };
+
   void runCycle();
+  /// The arrival of the oldest cloud applied since the last cycle, which is now consumed.
+  std::optional<Clock::time_point> takeOldestInput();
+  /// Publishes the subscribed ~deformed/<object> clouds; returns the points of all objects.
+  std::size_t publishDeformed(const std_msgs::Header& header);
+  void publishStats(const std_msgs::Header& header, const CycleTimes& times,
+                    std::optional<Clock::time_point> oldest_input, std::size_t points);
   bool onSetLevel(SetLevel::Request& request, SetLevel::Response& response);
   bool onGetContacts(GetContacts::Request& request, GetContacts::Response& response);
 
