@@ -9,6 +9,9 @@
 
 #include <boost/make_shared.hpp>
 #include <cmath>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
@@ -34,45 +37,90 @@ geometry_msgs::TransformStamped toTransform(const Eigen::Isometry3d& pose, const
   return transform;
 }
 
+struct PublisherParams {
+  std::string scene_name;
+  DemoScene scene_kind;
+  int points;
+  double rate_hz;
+  bool simulate;
+  double settle_s;
+  std::string fixed_frame;
+};
+
+/// The private parameters, checked; std::nullopt after saying what is wrong.
+std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle) {
+  PublisherParams params;
+  params.scene_name = private_handle.param<std::string>("scene", "gripper");
+  params.points = private_handle.param("points", 0);
+  params.rate_hz = private_handle.param("rate_hz", 10.0);
+  params.simulate = private_handle.param("simulate", false);
+  params.settle_s = private_handle.param("settle_s", 0.0);
+  params.fixed_frame = private_handle.param<std::string>("fixed_frame", "world");
+
+  const auto scene_kind = deformable_collision::parseDemoScene(params.scene_name);
+  if (!scene_kind) {
+    ROS_FATAL("~scene = '%s' must be %s", params.scene_name.c_str(),
+              deformable_collision::enumNameList(deformable_collision::kDemoSceneNames).c_str());
+    return std::nullopt;
+  }
+  params.scene_kind = *scene_kind;
+  if (!(params.rate_hz >= 10.0 && params.rate_hz <= 1000.0) || params.points < 0 ||
+      !(params.settle_s >= 0.0 && params.settle_s <= 60.0)) {
+    ROS_FATAL("~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s), "
+              "~points = %d >= 0 and ~settle_s = %g in [0, 60]", params.rate_hz, params.points,
+              params.settle_s);
+    return std::nullopt;
+  }
+  return params;
+}
+
+/// One round of output: the frames of the kinematic objects, and each subscribed object's
+/// cloud.
+void publishScene(const PublisherParams& params, const deformable_collision::Scene& scene,
+                  const ros::Time& now, double time_s, std::vector<ros::Publisher>& publishers,
+                  tf2_ros::TransformBroadcaster& broadcaster) {
+  for (std::size_t i = 0; i < scene.objectCount(); ++i) {
+    const auto& object = scene.objectConfig(i);
+    const bool kinematic = object.kind == deformable_collision::ObjectKind::kKinematic;
+    if (kinematic) {
+      // A kinematic object is its rest shape in its own frame, moved by tf.
+      const auto pose = deformable_collision::demoKinematicPose(params.scene_kind, object.name, time_s);
+      broadcaster.sendTransform(toTransform(pose.value_or(Eigen::Isometry3d::Identity()), now,
+                                            params.fixed_frame, object.name));
+    }
+    if (publishers[i].getNumSubscribers() == 0) continue;
+    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+    cloud->header.stamp = now;
+    cloud->header.frame_id = kinematic ? object.name : params.fixed_frame;
+    deformable_collision::writeCloudPoints(
+        kinematic ? scene.body(i).restPositions() : scene.body(i).positions(), *cloud);
+    publishers[i].publish(cloud);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   ros::init(argc, argv, "scene_publisher");
   ros::NodeHandle node_handle;
-  ros::NodeHandle private_handle("~");
-  const std::string scene_name = private_handle.param<std::string>("scene", "gripper");
-  const int points = private_handle.param("points", 0);
-  const double rate_hz = private_handle.param("rate_hz", 10.0);
-  const bool simulate = private_handle.param("simulate", false);
-  const double settle_s = private_handle.param("settle_s", 0.0);
-  const std::string fixed_frame = private_handle.param<std::string>("fixed_frame", "world");
-
-  const auto scene_kind = deformable_collision::parseDemoScene(scene_name);
-  if (!scene_kind) {
-    ROS_FATAL("~scene = '%s' must be %s", scene_name.c_str(),
-              deformable_collision::enumNameList(deformable_collision::kDemoSceneNames).c_str());
-    return 1;
-  }
-  if (!(rate_hz >= 10.0 && rate_hz <= 1000.0) || points < 0 || !(settle_s >= 0.0 && settle_s <= 60.0)) {
-    ROS_FATAL("~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s), "
-              "~points = %d >= 0 and ~settle_s = %g in [0, 60]", rate_hz, points, settle_s);
-    return 1;
-  }
+  const std::optional<PublisherParams> params = readParams(ros::NodeHandle("~"));
+  if (!params) return 1;
   deformable_collision::SceneConfig config;
-  config.dt_s = 1.0 / rate_hz;
+  config.dt_s = 1.0 / params->rate_hz;
   std::unique_ptr<deformable_collision::Scene> scene;
   try {
-    scene = deformable_collision::makeDemoScene(*scene_kind, static_cast<std::size_t>(points), config);
+    scene = deformable_collision::makeDemoScene(params->scene_kind,
+                                                static_cast<std::size_t>(params->points), config);
   } catch (const std::exception& e) {
-    ROS_FATAL("cannot build scene '%s': %s", scene_name.c_str(), e.what());
+    ROS_FATAL("cannot build scene '%s': %s", params->scene_name.c_str(), e.what());
     return 1;
   }
 
   // Settling runs before anything is published, on the scene's own clock, which the loop
   // below continues (kinematic objects keep their course).
-  const int settle_cycles = static_cast<int>(std::lround(settle_s * rate_hz));
+  const int settle_cycles = static_cast<int>(std::lround(params->settle_s * params->rate_hz));
   for (int cycle = 0; cycle < settle_cycles && ros::ok(); ++cycle) {
-    deformable_collision::driveDemoScene(*scene_kind, *scene, cycle * config.dt_s);
+    deformable_collision::driveDemoScene(params->scene_kind, *scene, cycle * config.dt_s);
     scene->cycle();
   }
 
@@ -83,35 +131,19 @@ int main(int argc, char** argv) {
   }
   tf2_ros::TransformBroadcaster broadcaster;
   ROS_INFO("scene_publisher: scene '%s' with %zu objects at %.1f Hz%s, settled for %d cycles",
-           scene_name.c_str(), scene->objectCount(), rate_hz, simulate ? ", simulated" : "",
-           settle_cycles);
+           params->scene_name.c_str(), scene->objectCount(), params->rate_hz,
+           params->simulate ? ", simulated" : "", settle_cycles);
 
   const ros::Time start = ros::Time::now();
-  ros::Rate rate(rate_hz);
+  ros::Rate rate(params->rate_hz);
   while (ros::ok()) {
     const ros::Time now = ros::Time::now();
     const double time_s = settle_cycles * config.dt_s + (now - start).toSec();
-    if (simulate) {
-      deformable_collision::driveDemoScene(*scene_kind, *scene, time_s);
+    if (params->simulate) {
+      deformable_collision::driveDemoScene(params->scene_kind, *scene, time_s);
       scene->cycle();
     }
-    for (std::size_t i = 0; i < scene->objectCount(); ++i) {
-      const auto& object = scene->objectConfig(i);
-      const bool kinematic = object.kind == deformable_collision::ObjectKind::kKinematic;
-      if (kinematic) {
-        // A kinematic object is its rest shape in its own frame, moved by tf.
-        const auto pose = deformable_collision::demoKinematicPose(*scene_kind, object.name, time_s);
-        broadcaster.sendTransform(toTransform(pose.value_or(Eigen::Isometry3d::Identity()), now,
-                                              fixed_frame, object.name));
-      }
-      if (publishers[i].getNumSubscribers() == 0) continue;
-      auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
-      cloud->header.stamp = now;
-      cloud->header.frame_id = kinematic ? object.name : fixed_frame;
-      deformable_collision::writeCloudPoints(
-          kinematic ? scene->body(i).restPositions() : scene->body(i).positions(), *cloud);
-      publishers[i].publish(cloud);
-    }
+    publishScene(*params, *scene, now, time_s, publishers, broadcaster);
     ros::spinOnce();
     rate.sleep();
   }
