@@ -91,6 +91,89 @@ std::vector<Eigen::Vector3d> shifted(std::vector<Eigen::Vector3d> points,
   return points;
 }
 
+/// Bends a ball about its centre line x = center_x, so that shape matching has work to do.
+void bend(dc::ShapeMatchingBody& body, double center_x) {
+  auto bent = body.restPositions();
+  for (auto& p : bent) p.z() += 0.05 * (p.y() * p.y() - (p.x() - center_x) * (p.x() - center_x));
+  body.setPositions(bent);
+}
+
+/// Full refit's place in makeMethods: the ratio column's denominator.
+constexpr std::size_t kFullRefit = 2;
+
+/// Ours first (the reference every other method's pairs must equal), then the peers.
+std::vector<std::unique_ptr<db::S1Method>> makeMethods(const dc::ShapeMatchingBody& a,
+                                                       const dc::ShapeMatchingBody& b,
+                                                       double contact_distance_m) {
+  const dc::SphereTreeConfig tree_config{2, 8};
+  std::vector<std::unique_ptr<db::S1Method>> methods;
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "deformation_update", a, b, dc::SphereUpdate::kDeformation, tree_config, contact_distance_m));
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "exact_refit", a, b, dc::SphereUpdate::kExactRefit, tree_config, contact_distance_m));
+  methods.push_back(std::make_unique<SphereTreeMethod>(
+      "full_refit", a, b, dc::SphereUpdate::kBottomUpRefit, tree_config, contact_distance_m));
+  for (auto& peer : db::makePeers(a.positions(), b.positions(), contact_distance_m)) {
+    methods.push_back(std::move(peer));
+  }
+  return methods;
+}
+
+/// Steps both bodies and times every method on each step; false (said on stderr) as soon as
+/// a method finds other pairs than the first.
+bool runSteps(int steps, dc::ShapeMatchingBody& a, dc::ShapeMatchingBody& b,
+              std::vector<std::unique_ptr<db::S1Method>>& methods, std::vector<Totals>& totals) {
+  for (int s = 0; s < steps; ++s) {
+    a.step(0.01, Eigen::Vector3d::Zero());
+    b.step(0.01, Eigen::Vector3d::Zero());
+    std::vector<db::PointPair> reference;
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      const auto start = db::Clock::now();
+      totals[m].updated += methods[m]->step();
+      totals[m].ms += db::millisecondsSince(start);
+      const std::vector<db::PointPair> pairs = methods[m]->pointPairs();
+      totals[m].pairs += pairs.size();
+      if (m == 0) {
+        reference = pairs;
+      } else if (pairs != reference) {
+        std::fprintf(stderr,
+                     "bench_collision: step %d: %s found %zu point pairs, %s %zu (or other ones)\n",
+                     s, methods[m]->name(), pairs.size(), methods[0]->name(), reference.size());
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+/// The table on stdout and, with a results directory, its rows in s1.csv and s1_pairs.csv.
+void report(const std::vector<std::unique_ptr<db::S1Method>>& methods,
+            const std::vector<Totals>& totals, std::size_t each, int steps,
+            double contact_distance_m, const std::string& results_dir) {
+  std::printf(
+      "S1: two quadratic balls of %zu points each (%zu in all), %d steps, contact distance "
+      "%.3f m; every method found the same %.1f point pairs per step\n\n",
+      each, 2 * each, steps, contact_distance_m, double(totals[0].pairs) / steps);
+  std::printf(
+      "| method | collision ms/step | / full refit | volumes updated/step |\n|---|---|---|---|\n");
+  const double full_refit_ms = totals[kFullRefit].ms / steps;
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::printf("| %s | %.3f | %.4f | %.0f |\n", methods[m]->name(), totals[m].ms / steps,
+                totals[m].ms / steps / full_refit_ms, double(totals[m].updated) / steps);
+  }
+  if (results_dir.empty()) return;
+  db::CsvAppender csv(results_dir + "/s1.csv",
+                      "points,method,spheres_updated,collision_ms,ratio_to_full_refit");
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    std::fprintf(csv.file(), "%zu,%s,%.0f,%.5f,%.5f\n", 2 * each, methods[m]->name(),
+                 double(totals[m].updated) / steps, totals[m].ms / steps,
+                 totals[m].ms / steps / full_refit_ms);
+  }
+  db::CsvAppender pairs(results_dir + "/s1_pairs.csv", "points,steps,methods,point_pairs_per_step");
+  std::fprintf(pairs.file(), "%zu,%d,%zu,%.2f\n", 2 * each, steps, methods.size(),
+               double(totals[0].pairs) / steps);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -108,71 +191,12 @@ int main(int argc, char** argv) {
   dc::ShapeMatchingBody a(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 1), config);
   dc::ShapeMatchingBody b(shifted(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 2), {0.98, 0, 0}),
                           config);
-  for (dc::ShapeMatchingBody* body : {&a, &b}) {
-    auto bent = body->restPositions();
-    const double center_x = body == &a ? 0.0 : 0.98;
-    for (auto& p : bent) p.z() += 0.05 * (p.y() * p.y() - (p.x() - center_x) * (p.x() - center_x));
-    body->setPositions(bent);
-  }
+  bend(a, 0.0);
+  bend(b, 0.98);
 
-  const dc::SphereTreeConfig tree_config{2, 8};
-  std::vector<std::unique_ptr<db::S1Method>> methods;
-  methods.push_back(std::make_unique<SphereTreeMethod>(
-      "deformation_update", a, b, dc::SphereUpdate::kDeformation, tree_config, contact_distance_m));
-  methods.push_back(std::make_unique<SphereTreeMethod>(
-      "exact_refit", a, b, dc::SphereUpdate::kExactRefit, tree_config, contact_distance_m));
-  methods.push_back(std::make_unique<SphereTreeMethod>(
-      "full_refit", a, b, dc::SphereUpdate::kBottomUpRefit, tree_config, contact_distance_m));
-  const std::size_t full_refit = 2;
-  for (auto& peer : db::makePeers(a.positions(), b.positions(), contact_distance_m)) {
-    methods.push_back(std::move(peer));
-  }
-
+  std::vector<std::unique_ptr<db::S1Method>> methods = makeMethods(a, b, contact_distance_m);
   std::vector<Totals> totals(methods.size());
-  for (int s = 0; s < steps; ++s) {
-    a.step(0.01, Eigen::Vector3d::Zero());
-    b.step(0.01, Eigen::Vector3d::Zero());
-    std::vector<db::PointPair> reference;
-    for (std::size_t m = 0; m < methods.size(); ++m) {
-      const auto start = db::Clock::now();
-      totals[m].updated += methods[m]->step();
-      totals[m].ms += db::millisecondsSince(start);
-      const std::vector<db::PointPair> pairs = methods[m]->pointPairs();
-      totals[m].pairs += pairs.size();
-      if (m == 0) {
-        reference = pairs;
-      } else if (pairs != reference) {
-        std::fprintf(stderr,
-                     "bench_collision: step %d: %s found %zu point pairs, %s %zu (or other ones)\n",
-                     s, methods[m]->name(), pairs.size(), methods[0]->name(), reference.size());
-        return 1;
-      }
-    }
-  }
-
-  std::printf(
-      "S1: two quadratic balls of %zu points each (%zu in all), %d steps, contact distance "
-      "%.3f m; every method found the same %.1f point pairs per step\n\n",
-      each, 2 * each, steps, contact_distance_m, double(totals[0].pairs) / steps);
-  std::printf(
-      "| method | collision ms/step | / full refit | volumes updated/step |\n|---|---|---|---|\n");
-  const double full_refit_ms = totals[full_refit].ms / steps;
-  for (std::size_t m = 0; m < methods.size(); ++m) {
-    std::printf("| %s | %.3f | %.4f | %.0f |\n", methods[m]->name(), totals[m].ms / steps,
-                totals[m].ms / steps / full_refit_ms, double(totals[m].updated) / steps);
-  }
-  if (!results_dir.empty()) {
-    db::CsvAppender csv(results_dir + "/s1.csv",
-                        "points,method,spheres_updated,collision_ms,ratio_to_full_refit");
-    for (std::size_t m = 0; m < methods.size(); ++m) {
-      std::fprintf(csv.file(), "%zu,%s,%.0f,%.5f,%.5f\n", 2 * each, methods[m]->name(),
-                   double(totals[m].updated) / steps, totals[m].ms / steps,
-                   totals[m].ms / steps / full_refit_ms);
-    }
-    db::CsvAppender pairs(results_dir + "/s1_pairs.csv",
-                          "points,steps,methods,point_pairs_per_step");
-    std::fprintf(pairs.file(), "%zu,%d,%zu,%.2f\n", 2 * each, steps, methods.size(),
-                 double(totals[0].pairs) / steps);
-  }
+  if (!runSteps(steps, a, b, methods, totals)) return 1;
+  report(methods, totals, each, steps, contact_distance_m, results_dir);
   return 0;
 }
