@@ -120,49 +120,54 @@ double coverageError(const std::vector<dc::SceneContact>& fine,
   return worst;
 }
 
-int runS2(const std::string& results_dir, int settle, int cycles) {
-  auto reference = settled(dc::DemoScene::kPile, settle);
-  const int finest = reference->maxLevel();
-  const std::vector<Eigen::Vector3d> settled_points = softPoints(*reference);
+/// The settled pile's soft objects: their mean diameter (what errors are relative to) and
+/// how fast their points still move (what the deviations grow from).
+struct PileState {
   double diameter_m = 0.0;
-  for (const std::size_t i : softObjects(*reference)) {
-    diameter_m += 2.0 * dc::smallestEnclosingSphere(reference->body(i).restPositions()).radius;
-  }
-  diameter_m /= double(softObjects(*reference).size());
-  const double baseline_ms = fullRefitMs(*reference);
-  appendBaseline(results_dir, "s2", baseline_ms);
-  // How much the settled pile still moves: what the deviations grow from.
   double speed_mps = 0.0;
-  for (const std::size_t i : softObjects(*reference)) {
-    for (const Eigen::Vector3d& v : reference->body(i).velocities()) speed_mps += v.norm();
-  }
-  speed_mps /= double(settled_points.size());
-  {
-    db::CsvAppender state(
-        results_dir + "/s2_state.csv",
-        "soft_points,settle_cycles,cycles_per_level,mean_diameter_m,mean_point_speed_mps");
-    std::fprintf(state.file(), "%zu,%d,%d,%.5f,%.5f\n", settled_points.size(), settle, cycles,
-                 diameter_m, speed_mps);
-  }
+};
 
+PileState describePile(const dc::Scene& pile) {
+  PileState state;
+  const std::vector<std::size_t> soft = softObjects(pile);
+  std::size_t points = 0;
+  for (const std::size_t i : soft) {
+    state.diameter_m += 2.0 * dc::smallestEnclosingSphere(pile.body(i).restPositions()).radius;
+  }
+  state.diameter_m /= double(soft.size());
+  for (const std::size_t i : soft) {
+    for (const Eigen::Vector3d& v : pile.body(i).velocities()) state.speed_mps += v.norm();
+    points += pile.body(i).velocities().size();
+  }
+  state.speed_mps /= double(points);
+  return state;
+}
+
+/// Per level below the finest, how far the finest contacts are from the level's (coverage).
+std::vector<double> coverageByLevel(dc::Scene& scene) {
+  const int finest = scene.maxLevel();
   std::vector<dc::SceneContact> fine, coarse;
-  reference->contactsAt(finest, std::nullopt, std::nullopt, fine);
+  scene.contactsAt(finest, std::nullopt, std::nullopt, fine);
   std::vector<double> coverage(finest + 1, 0.0);
   for (int level = 1; level < finest; ++level) {
-    reference->contactsAt(level, std::nullopt, std::nullopt, coarse);
+    scene.contactsAt(level, std::nullopt, std::nullopt, coarse);
     coverage[level] = coverageError(fine, coarse);
   }
-  std::vector<Means> means(finest + 1);
-  means[finest] = runCycles(*reference, cycles);
-  const std::vector<Eigen::Vector3d> reference_points = softPoints(*reference);
-  reference.reset();
+  return coverage;
+}
 
-  std::vector<double> rms_rel(finest + 1, 0.0);
+/// Each coarser level from the same settled pile: its means and its points' RMS distance
+/// from the finest run's, relative to the diameter. False if the settled piles differ,
+/// which would make the comparison meaningless.
+bool runCoarserLevels(int settle, int cycles, const std::vector<Eigen::Vector3d>& settled_points,
+                      const std::vector<Eigen::Vector3d>& reference_points, double diameter_m,
+                      std::vector<Means>& means, std::vector<double>& rms_rel) {
+  const int finest = static_cast<int>(means.size()) - 1;
   for (int level = 1; level < finest; ++level) {
     auto scene = settled(dc::DemoScene::kPile, settle);
     if (softPoints(*scene) != settled_points) {
       std::fprintf(stderr, "bench_scene s2: the settled pile differs between runs\n");
-      return 1;
+      return false;
     }
     scene->setLevel(level);
     means[level] = runCycles(*scene, cycles);
@@ -172,12 +177,39 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
       squared += (points[p] - reference_points[p]).squaredNorm();
     rms_rel[level] = std::sqrt(squared / double(points.size())) / diameter_m;
   }
+  return true;
+}
+
+int runS2(const std::string& results_dir, int settle, int cycles) {
+  auto reference = settled(dc::DemoScene::kPile, settle);
+  const int finest = reference->maxLevel();
+  const std::vector<Eigen::Vector3d> settled_points = softPoints(*reference);
+  const PileState pile = describePile(*reference);
+  const double baseline_ms = fullRefitMs(*reference);
+  appendBaseline(results_dir, "s2", baseline_ms);
+  {
+    db::CsvAppender state(
+        results_dir + "/s2_state.csv",
+        "soft_points,settle_cycles,cycles_per_level,mean_diameter_m,mean_point_speed_mps");
+    std::fprintf(state.file(), "%zu,%d,%d,%.5f,%.5f\n", settled_points.size(), settle, cycles,
+                 pile.diameter_m, pile.speed_mps);
+  }
+  const std::vector<double> coverage = coverageByLevel(*reference);
+  std::vector<Means> means(finest + 1);
+  means[finest] = runCycles(*reference, cycles);
+  const std::vector<Eigen::Vector3d> reference_points = softPoints(*reference);
+  reference.reset();
+  std::vector<double> rms_rel(finest + 1, 0.0);
+  if (!runCoarserLevels(settle, cycles, settled_points, reference_points, pile.diameter_m, means,
+                        rms_rel)) {
+    return 1;
+  }
 
   std::printf(
       "S2 pile: %zu soft points, settled for %d cycles, then %d cycles per level; "
       "mean object diameter %.4f m, mean point speed when settled %.3f m/s; full refit "
       "baseline %.3f ms\n\n",
-      settled_points.size(), settle, cycles, diameter_m, speed_mps, baseline_ms);
+      settled_points.size(), settle, cycles, pile.diameter_m, pile.speed_mps, baseline_ms);
   std::printf(
       "| level | contacts | detection ms | response ms | total ms | / baseline | coverage m | "
       "rms rel |\n|---|---|---|---|---|---|---|---|\n");
