@@ -4,6 +4,8 @@
 #include <boost/make_shared.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <sstream>
 
 #include "deformable_collision/core/point_spacing.h"
 #include "deformable_collision/ros/cloud_transform.h"
@@ -47,6 +49,24 @@ std::optional<Eigen::Isometry3d> toIsometry(const geometry_msgs::Transform& tran
   isometry.linear() = rotation.normalized().toRotationMatrix();
   isometry.translation() = translation;
   return isometry;
+}
+
+/// Why a point lies implausibly far from the origin of `frame`: the first coordinate of
+/// `points` beyond `bound_m` in magnitude, or empty if none is. Unobserved points (NaN in
+/// every coordinate, a tracked cloud's holes) have no coordinate to check.
+std::string farCoordinateProblem(const std::vector<Eigen::Vector3d>& points, double bound_m,
+                                 const std::string& frame) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (points[i].array().isNaN().all()) continue;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (std::abs(points[i][axis]) <= bound_m) continue;
+      std::ostringstream problem;
+      problem << "point " << i << " has " << "xyz"[axis] << " = " << points[i][axis] << " m in '"
+              << frame << "', beyond max_coordinate_m = " << bound_m;
+      return problem.str();
+    }
+  }
+  return "";
 }
 
 double millisecondsBetween(std::chrono::steady_clock::time_point from,
@@ -234,6 +254,9 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     case TransformOutcome::kRefused:
       return reject(problem);
   }
+  // Finite but absurd coordinates would be taken as the object's shape or pose.
+  problem = farCoordinateProblem(cloud_points_, config_.max_coordinate_m, targetFrame(slot));
+  if (!problem.empty()) return reject(problem);
   // A kinematic object is placed by its frame's pose, which may come later too.
   if (slot.params.object.kind == ObjectKind::kKinematic && !last_try &&
       !tf_buffer_.canTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))) {

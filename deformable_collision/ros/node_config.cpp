@@ -287,6 +287,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
       std::numeric_limits<int>::max()));
 
   config.tf_wait_s = read.number("tf_wait_s", config.tf_wait_s, 0.0, 60.0);
+  config.max_coordinate_m = read.number("max_coordinate_m", config.max_coordinate_m, 0.0, 1e12, true);
   SceneConfig& scene = config.scene;
   scene.dt_s = read.number(read.renamed("dt_s", "dt", warnings), scene.dt_s, 0.0, 0.1, true);
   scene.gravity_mps2 =

@@ -47,6 +47,10 @@ struct NodeConfig {
   /// before it is dropped with a warning. A cloud in a frame tf does not know at all is
   /// dropped at once, once the node has run max(tf_wait_s, 1 s) and tf has filled.
   double tf_wait_s = 0.5;
+  /// Largest |x|, |y| or |z| of a point, in the frame the object is placed in (fixed_frame,
+  /// or follow_frame for a kinematic object): a cloud with a point beyond it is dropped, as a
+  /// coordinate that far is a sensor's garbage, not an object.
+  double max_coordinate_m = 1e4;
   bool markers_colliding_only = false;
   SceneConfig scene;  ///< dt_s, gravity_mps2, level, contact_distance_m, friction, tree.
   std::vector<ObjectParams> objects;

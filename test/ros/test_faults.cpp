@@ -1,6 +1,6 @@
 // Faults the nodelet must survive (rostest faults.test): late and missing tf, clouds in a
 // frame tf does not know among good ones, a publisher process killed and started again, a
-// tracked cloud of another size, a cloud of 10 million points, and services hammered from
+// tracked cloud of another size, one with points at 1e100 m, a cloud of 10 million points, and services hammered from
 // several clients at once. Each test meets its own object of faults_test.yaml and checks
 // the node's ~stats and outputs; every wait is on an event with a timeout. The manager
 // killed and respawned has its own rostest (manager_respawn.test), as a respawn would start
@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <thread>
@@ -32,6 +33,23 @@ namespace {
 
 constexpr double kTfWaitS = 2.0;  // faults_test.yaml
 constexpr double kRateHz = 50.0;  // faults_test.yaml
+
+/// `points` as an unorganized FLOAT64 x y z cloud in the host's byte order, which holds
+/// what FLOAT32 cannot (1e100).
+sensor_msgs::PointCloud2 doubleCloudOf(const Points& points, const std::string& frame) {
+  sensor_msgs::PointCloud2 cloud = cloudOf(points, frame);
+  for (std::uint32_t axis = 0; axis < 3; ++axis) {
+    cloud.fields[axis].offset = axis * sizeof(double);
+    cloud.fields[axis].datatype = sensor_msgs::PointField::FLOAT64;
+  }
+  cloud.point_step = 3 * sizeof(double);
+  cloud.row_step = cloud.point_step * cloud.width;
+  cloud.data.resize(cloud.row_step);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::memcpy(&cloud.data[i * cloud.point_step], points[i].data(), cloud.point_step);
+  }
+  return cloud;
+}
 
 /// A child process, stopped by its pid (SIGTERM, then waited for) when it goes out of scope.
 class ChildProcess {
@@ -230,6 +248,34 @@ TEST_F(FaultsTest, ATrackedCloudOfAnotherSizeIsRefusedAndTheNextGoodOneTaken) {
   EXPECT_TRUE(waitFor([&] {
     return deformed("counted") && std::abs(meanOf(*deformed("counted")).x() + 0.1) < 1e-4;
   })) << "the next cloud of the right size did not move the object";
+  EXPECT_EQ(stats_->clouds_rejected, rejected + 1);
+}
+
+TEST_F(FaultsTest, ATrackedCloudWithPointsBeyondMaxCoordinateIsRefusedAndTheNextGoodOneTaken) {
+  ros::Publisher far = input("/faults/far");
+  deformed("far");
+  const auto slab = [](double x) { return grid(10, 10, 2, 0.02, {x, 0.3, 0.04}); };
+  const auto deformedAtX = [&](double x) {
+    return deformed("far") && std::abs(meanOf(*deformed("far")).x() - x) < 1e-4;
+  };
+  far.publish(doubleCloudOf(slab(0.4), "world"));
+  ASSERT_TRUE(waitFor([&] { return deformedAtX(0.4); })) << "the first cloud was not taken";
+
+  // 1% of the points at a finite but absurd 1e100 m (the default bound is 1e4 m).
+  const std::uint32_t rejected = stats_->clouds_rejected;
+  Points absurd = slab(0.45);
+  absurd[17].x() = 1e100;
+  absurd[123].z() = -1e100;
+  far.publish(doubleCloudOf(absurd, "world"));
+  ASSERT_TRUE(waitFor([&] { return stats_->clouds_rejected == rejected + 1; }))
+      << "a cloud with points at 1e100 m was taken";
+  ASSERT_TRUE(cyclesPass(3));
+  EXPECT_TRUE(waitFor([&] { return deformedAtX(0.4); })) << "the refused cloud moved the object";
+  EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/far"); }, 5.0));
+
+  far.publish(doubleCloudOf(slab(0.45), "world"));
+  EXPECT_TRUE(waitFor([&] { return deformedAtX(0.45); }))
+      << "the next good cloud did not move the object";
   EXPECT_EQ(stats_->clouds_rejected, rejected + 1);
 }
 

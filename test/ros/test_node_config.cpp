@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,7 @@ XmlRpcValue validParams() {
   params["level"] = 3;
   params["contact_distance_m"] = 0.01;
   params["max_points_per_object"] = 5000;
+  params["max_coordinate_m"] = 500.0;
   params["gravity_mps2"][0] = 0.0;
   params["gravity_mps2"][1] = 0.0;
   params["gravity_mps2"][2] = -1.62;
@@ -66,6 +68,7 @@ TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
   EXPECT_EQ(config.scene.level, 3);
   EXPECT_DOUBLE_EQ(config.scene.contact_distance_m, 0.01);
   EXPECT_EQ(config.max_points_per_object, 5000u);
+  EXPECT_DOUBLE_EQ(config.max_coordinate_m, 500.0);
   EXPECT_TRUE(config.scene.gravity_mps2.isApprox(Eigen::Vector3d(0, 0, -1.62)));
   EXPECT_TRUE(config.markers_colliding_only);
   ASSERT_EQ(config.objects.size(), 4u);
@@ -94,6 +97,7 @@ TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
   const NodeConfig defaults;
   EXPECT_EQ(config.fixed_frame, defaults.fixed_frame);
   EXPECT_DOUBLE_EQ(config.rate_hz, defaults.rate_hz);
+  EXPECT_DOUBLE_EQ(config.max_coordinate_m, 1e4);
   EXPECT_EQ(config.scene.level, -1);
   EXPECT_EQ(config.objects[0].object.kind, ObjectKind::kDynamic);
   EXPECT_EQ(config.objects[0].object.shape.mode, DeformationMode::kLinear);
@@ -135,6 +139,11 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"SlashedFrame", [](XmlRpcValue& p) { p["fixed_frame"] = "/world"; }, "fixed_frame = '/world'"},
         BadParamCase{"SlashedFollowFrame", [](XmlRpcValue& p) { p["objects"][2]["follow_frame"] = "/link"; }, "objects[2].follow_frame = '/link'"},
         BadParamCase{"NegativeTfWait", [](XmlRpcValue& p) { p["tf_wait_s"] = -0.1; }, "tf_wait_s = -0.1 must be in [0, 60]"},
+        BadParamCase{"ZeroCoordinateBound", [](XmlRpcValue& p) { p["max_coordinate_m"] = 0.0; }, "max_coordinate_m = 0 must be in (0, 1e+12]"},
+        BadParamCase{"NegativeCoordinateBound", [](XmlRpcValue& p) { p["max_coordinate_m"] = -1.0; }, "max_coordinate_m = -1"},
+        BadParamCase{"CoordinateBoundAbove1e12", [](XmlRpcValue& p) { p["max_coordinate_m"] = 2e12; }, "max_coordinate_m = 2e+12"},
+        BadParamCase{"InfiniteCoordinateBound", [](XmlRpcValue& p) { p["max_coordinate_m"] = std::numeric_limits<double>::infinity(); }, "max_coordinate_m = inf"},
+        BadParamCase{"CoordinateBoundAsString", [](XmlRpcValue& p) { p["max_coordinate_m"] = "far"; }, "max_coordinate_m must be a number"},
         BadParamCase{"ZeroPointLimit", [](XmlRpcValue& p) { p["max_points_per_object"] = 0; }, "max_points_per_object"},
         BadParamCase{"MisspeltTopLevel", [](XmlRpcValue& p) { p["contact_distance"] = 0.1; }, "contact_distance is not a known"},
         BadParamCase{"MisspeltMarkers", [](XmlRpcValue& p) { p["markers"]["coliding_only"] = true; }, "markers.coliding_only"},
@@ -251,6 +260,16 @@ TEST(NodeConfig, AnOldKeyOutOfRangeIsNamedAsGiven) {
     EXPECT_NE(std::string(e.what()).find("parameter dt = 0.5 must be in (0, 0.1]"),
               std::string::npos)
         << e.what();
+  }
+}
+
+TEST(NodeConfig, CoordinateBoundTakesItsRangeEndsAndAnInteger) {
+  const std::vector<std::pair<XmlRpcValue, double>> accepted = {
+      {XmlRpcValue(1e12), 1e12}, {XmlRpcValue(1e-3), 1e-3}, {XmlRpcValue(100), 100.0}};
+  for (const auto& [value, expected] : accepted) {
+    XmlRpcValue params = validParams();
+    params["max_coordinate_m"] = value;
+    EXPECT_EQ(parseWithoutWarnings(params).max_coordinate_m, expected);
   }
 }
 
