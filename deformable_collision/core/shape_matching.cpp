@@ -19,6 +19,9 @@ using detail::kFeatureCount;
 using detail::slotWeightKg;
 using detail::withMode;
 
+/// rebase_distance_m_ in rest extents (the largest distance of a rest point from the first).
+constexpr double kRebaseDistanceInExtents = 1e3;
+
 /// @throw std::invalid_argument unless `values` has one finite vector per point.
 void requireOnePerPoint(const std::vector<Eigen::Vector3d>& values, std::size_t points,
                         const char* what, const char* plural) {
@@ -174,10 +177,19 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     deformations_[k].center_of_mass = clusters_[k].rest_center_of_mass;
   }
+  double rest_extent_m = 0.0;
+  for (const auto& p : rest_positions_) {
+    rest_extent_m = std::max(rest_extent_m, (p - rest_positions_.front()).norm());
+  }
+  rebase_distance_m_ = kRebaseDistanceInExtents * rest_extent_m;
+  // The rest shape is registered about its own centres, so this registration never starts
+  // afresh and needs fresh_deformations_ only to exist.
+  fresh_deformations_ = deformations_;
   cluster_sums_.resize(clusters_.size());
   goal_transforms_.assign(clusters_.size(), Eigen::Matrix<double, 3, 9>::Zero());
   goal_translations_.assign(clusters_.size(), Eigen::Vector3d::Zero());
   setPositions(positions_);
+  fresh_deformations_ = deformations_;
 }
 
 std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observed_points) {
@@ -236,9 +248,17 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     if (std::all_of(cluster.points.begin(), cluster.points.end(), seen)) {
+      // After absurd input the carried state would pass its damage on: start as fresh.
+      const Eigen::Vector3d shift = cluster_sums_[k].offset / cluster.total_weight_kg;
+      if (!detail::carriedStateFits(deformations_[k], shift, rebase_distance_m_)) {
+        deformations_[k] = fresh_deformations_[k];
+        cluster_sums_[k] = detail::clusterSums<K>(cluster, point_mass_kg_, positions_, velocities_,
+                                                  deformations_[k].center_of_mass, wide_vectors_);
+      }
       detail::registerCluster<Mode>(cluster, cluster_sums_[k], deformations_[k]);
     } else {
       detail::registerObservedSubset<Mode>(cluster, point_mass_kg_, positions_, *observed,
+                                           fresh_deformations_[k], rebase_distance_m_,
                                            deformations_[k]);
     }
   }

@@ -129,13 +129,18 @@ class ShapeMatchingBody {
   /// integrating: the fitted transforms become the goal transforms. Non-finite observations
   /// count as unobserved: a cluster is then fitted on its observed points alone and its
   /// unobserved points move to their goals (a cluster with none observed keeps its last
-  /// transform). Velocities become zero.
+  /// transform, or if that is not finite, a fresh body's). Velocities become zero.
+  /// A registration carries on from the last one (the centres of mass as the reference of
+  /// its sums, the rotations as warm starts) unless that state is not finite or its centre
+  /// lies over 1000 rest extents from the new points' own: it then starts as a fresh body
+  /// does, so that after absurd but finite input (points at 1e100 m, a step at 1e30 m/s)
+  /// the next valid input gives a fresh body's state, bit for bit.
   /// @return the number of unobserved points.
   /// @throw std::invalid_argument if the size differs; the state is then unchanged.
   std::size_t track(const std::vector<Eigen::Vector3d>& observed_points);
 
   /// Places the points (a deformed start, a pose) and sets their velocities to zero. The
-  /// per-cluster outputs are refreshed by registering the new positions.
+  /// per-cluster outputs are refreshed by registering the new positions, as track() does.
   /// @throw std::invalid_argument if the size differs or a point is not finite.
   void setPositions(const std::vector<Eigen::Vector3d>& positions);
 
@@ -200,6 +205,13 @@ class ShapeMatchingBody {
   std::vector<Eigen::Vector3d> velocities_;
   std::vector<Cluster> clusters_;
   std::vector<ClusterDeformation> deformations_;
+  /// The clusters' state once the constructor has registered the rest shape: where a
+  /// registration starts from, as a fresh body would, when the state it would carry on
+  /// from is not usable (detail::carriedStateFits).
+  std::vector<ClusterDeformation> fresh_deformations_;
+  /// How far the points' centre may lie from the carried reference before a registration
+  /// starts afresh: far beyond any motion between two inputs of an object this size.
+  double rebase_distance_m_ = 0.0;
   std::vector<std::uint32_t> membership_counts_;  ///< Clusters holding each point.
   std::vector<std::uint32_t> shared_points_;     ///< Points held by more than one cluster.
   /// Clusters and slots holding each point: those of point i are

@@ -218,15 +218,30 @@ void registerCluster(const Cluster& cluster, const ClusterSums& sums,
       deformation.center_of_mass - transform * cluster.mean_features.template head<K>();
 }
 
+bool carriedStateFits(const ClusterDeformation& deformation, const Eigen::Vector3d& shift,
+                      double rebase_distance_m) {
+  return deformation.rotation.coeffs().allFinite() && shift.norm() <= rebase_distance_m;
+}
+
 template <DeformationMode Mode>
 void registerObservedSubset(const Cluster& cluster, double point_mass_kg,
                             const std::vector<Eigen::Vector3d>& positions,
                             const std::vector<Eigen::Vector3d>& observed,
+                            const ClusterDeformation& fresh, double rebase_distance_m,
                             ClusterDeformation& deformation) {
   constexpr int K = kFeatureCount<Mode>;
-  const ObservedMean<K> mean = observedMean<K>(cluster, point_mass_kg, positions, observed,
-                                               deformation.center_of_mass);
-  if (!(mean.mass > 0.0)) return;
+  ObservedMean<K> mean = observedMean<K>(cluster, point_mass_kg, positions, observed,
+                                         deformation.center_of_mass);
+  if (!(mean.mass > 0.0)) {
+    const bool finite = deformation.transform.allFinite() && deformation.translation.allFinite() &&
+                        deformation.rotation.coeffs().allFinite();
+    if (!finite) deformation = fresh;
+    return;
+  }
+  if (!carriedStateFits(deformation, mean.center - deformation.center_of_mass, rebase_distance_m)) {
+    deformation = fresh;
+    mean = observedMean<K>(cluster, point_mass_kg, positions, observed, deformation.center_of_mass);
+  }
   const ObservedMoments<K> moments =
       observedMoments<K>(cluster, point_mass_kg, positions, observed, mean);
   extractRotation(moments.pq.template leftCols<3>(), deformation.rotation);
@@ -280,7 +295,8 @@ void measureFitResiduals(const std::vector<Cluster>& clusters,
   template void registerCluster<MODE>(const Cluster&, const ClusterSums&, ClusterDeformation&); \
   template void registerObservedSubset<MODE>(                                                   \
       const Cluster&, double, const std::vector<Eigen::Vector3d>&,                              \
-      const std::vector<Eigen::Vector3d>&, ClusterDeformation&);                                \
+      const std::vector<Eigen::Vector3d>&, const ClusterDeformation&, double,                   \
+      ClusterDeformation&);                                                                     \
   template void stepGoal<MODE>(const Cluster&, const ClusterDeformation&, double, bool,         \
                                Eigen::Matrix<double, 3, 9>&, Eigen::Vector3d&);                 \
   template void measureFitResiduals<MODE>(const std::vector<Cluster>&,                          \

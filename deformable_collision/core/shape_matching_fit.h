@@ -19,13 +19,23 @@ template <DeformationMode Mode>
 void registerCluster(const Cluster& cluster, const ClusterSums& sums,
                      ClusterDeformation& deformation);
 
+/// Whether a registration may carry on from `deformation` (its centre of mass as the
+/// reference of the sums, its rotation as the warm start) for points whose centre lies
+/// `shift` from that reference: not after absurd input, whose state is not finite or whose
+/// centre is so far away that sums about it would lose the new points' digits.
+bool carriedStateFits(const ClusterDeformation& deformation, const Eigen::Vector3d& shift,
+                      double rebase_distance_m);
+
 /// Registers a cluster on its observed points alone (those with finite `observed`
 /// positions), with the moment matrices of that subset: points left at stale positions
-/// would drag the fit. A cluster with no observed point keeps its last transform.
+/// would drag the fit. Starts from `fresh` instead of `deformation` where carriedStateFits
+/// says no. A cluster with no observed point keeps its last transform if it is finite,
+/// otherwise takes `fresh`.
 template <DeformationMode Mode>
 void registerObservedSubset(const Cluster& cluster, double point_mass_kg,
                             const std::vector<Eigen::Vector3d>& positions,
                             const std::vector<Eigen::Vector3d>& observed,
+                            const ClusterDeformation& fresh, double rebase_distance_m,
                             ClusterDeformation& deformation);
 
 /// The transform and translation a step pulls the cluster's points towards: the fit

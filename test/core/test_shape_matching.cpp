@@ -631,6 +631,166 @@ TEST(Track, WrongSizeThrowsAndLeavesTheStateAlone) {
 }
 
 // ---------------------------------------------------------------------------------------
+// Recovery from absurd but finite input: a cloud with 1% of its points at 1e100 or 1e200 m,
+// a step at 1e30 or 1e200 m/s. The next valid input must give the state a fresh body given
+// the same input has, bit for bit, and the same trajectory after it: nothing of the absurd
+// state carries.
+
+struct AbsurdInputCase {
+  std::string name;
+  DeformationMode mode;
+  int clusters;
+  double magnitude;  ///< Of the absurd coordinates (m) or velocities (m/s).
+};
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const AbsurdInputCase& c, std::ostream* os) { *os << c.name; }
+
+std::vector<AbsurdInputCase> absurdInputCases(const std::vector<double>& magnitudes) {
+  std::vector<AbsurdInputCase> cases;
+  for (const auto mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    for (const int clusters : {1, 4}) {
+      for (const double magnitude : magnitudes) {
+        const std::string exponent = std::to_string(static_cast<int>(std::log10(magnitude)));
+        cases.push_back({std::string(toString(mode)) + "_" + std::to_string(clusters) +
+                             "_clusters_1e" + exponent,
+                         mode, clusters, magnitude});
+      }
+    }
+  }
+  return cases;
+}
+
+/// Every point, velocity and per-cluster output of `body` equals that of `fresh` within
+/// `tolerance_m` (lengths; the transforms, which are dimensionless, within tolerance_m / size).
+void expectSameState(const ShapeMatchingBody& body, const ShapeMatchingBody& fresh,
+                     double tolerance_m, double size_m, const std::string& when) {
+  for (std::size_t i = 0; i < body.pointCount(); ++i) {
+    ASSERT_LE((body.positions()[i] - fresh.positions()[i]).norm(), tolerance_m)
+        << when << ": point " << i << " at " << body.positions()[i].transpose() << ", fresh at "
+        << fresh.positions()[i].transpose();
+    ASSERT_LE((body.velocities()[i] - fresh.velocities()[i]).norm(), tolerance_m)
+        << when << ": velocity of point " << i;
+  }
+  for (std::size_t k = 0; k < body.clusterCount(); ++k) {
+    const ClusterDeformation& a = body.deformation(k);
+    const ClusterDeformation& b = fresh.deformation(k);
+    EXPECT_LE((a.center_of_mass - b.center_of_mass).norm(), tolerance_m) << when << ", cluster " << k;
+    EXPECT_LE((a.translation - b.translation).norm(), tolerance_m) << when << ", cluster " << k;
+    EXPECT_LE((a.transform - b.transform).norm() * size_m, tolerance_m) << when << ", cluster " << k;
+    EXPECT_LE((a.rotation.toRotationMatrix() - b.rotation.toRotationMatrix()).norm() * size_m,
+              tolerance_m)
+        << when << ", cluster " << k;
+    EXPECT_LE(std::abs(a.goal_deviation_bound_m - b.goal_deviation_bound_m), tolerance_m)
+        << when << ", cluster " << k << ": residual " << a.goal_deviation_bound_m << ", fresh "
+        << b.goal_deviation_bound_m;
+  }
+}
+
+/// The rest shape seen turned, bent a little and moved, as a tracked object is.
+Points observedPose(const Points& rest, double shift_m) {
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
+  return mapped(rest, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return turn * Eigen::Vector3d(p.x(), p.y() + 0.2 * p.x() * p.x(), p.z()) +
+           Eigen::Vector3d(1.5 + shift_m, -0.4, 0.8);
+  });
+}
+
+/// `points` with 1% of them (every 100th from 3, which every 7th meets at 203) moved to
+/// +-`magnitude` along one axis.
+Points withPointsFarOut(Points points, double magnitude) {
+  for (std::size_t i = 3; i < points.size(); i += 100) {
+    points[i][i % 3] = (i % 2 == 0 ? 1.0 : -1.0) * magnitude;
+  }
+  return points;
+}
+
+class AbsurdInputTest : public ::testing::TestWithParam<AbsurdInputCase> {
+ protected:
+  static constexpr double kSizeM = 0.5;  ///< Largest half extent of the rest box.
+  /// Bit for bit: the body starts afresh from the state a fresh body has.
+  static constexpr double kToleranceM = 0.0;
+  const Points rest_ = sampleBox(600, {kSizeM, 0.3, 0.2}, 23);
+  ShapeMatchingBody body_{rest_, configFor(GetParam().mode, GetParam().clusters)};
+  ShapeMatchingBody fresh_{rest_, configFor(GetParam().mode, GetParam().clusters)};
+};
+
+TEST_P(AbsurdInputTest, TheGoodCloudAfterOneWithPointsFarOutGivesAFreshBodysState) {
+  body_.track(withPointsFarOut(observedPose(rest_, 0.0), GetParam().magnitude));
+  for (int cloud = 0; cloud < 8; ++cloud) {
+    const Points good = observedPose(rest_, 0.01 * cloud);
+    body_.track(good);
+    fresh_.track(good);
+    expectSameState(body_, fresh_, kToleranceM, kSizeM, "good cloud " + std::to_string(cloud));
+  }
+  for (int s = 0; s < 50; ++s) {
+    body_.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    fresh_.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+  }
+  expectSameState(body_, fresh_, kToleranceM, kSizeM, "50 steps later");
+}
+
+// Registered on its observed points alone, with the points far out in the last cloud now
+// unobserved among others.
+TEST_P(AbsurdInputTest, AGoodCloudWithHolesAfterOneWithPointsFarOutGivesAFreshBodysState) {
+  body_.track(withPointsFarOut(observedPose(rest_, 0.0), GetParam().magnitude));
+  Points holed = observedPose(rest_, 0.02);
+  for (std::size_t i = 0; i < holed.size(); i += 7) {
+    holed[i].setConstant(std::numeric_limits<double>::quiet_NaN());
+  }
+  EXPECT_EQ(body_.track(holed), fresh_.track(holed));
+  expectSameState(body_, fresh_, kToleranceM, kSizeM, "cloud with holes");
+}
+
+TEST_P(AbsurdInputTest, PlacedAndStoppedAfterAStepAtAbsurdSpeedItMovesAsAFreshBody) {
+  Points velocities(rest_.size());
+  for (std::size_t i = 0; i < velocities.size(); ++i) {
+    velocities[i] = GetParam().magnitude * Eigen::Vector3d(1.0, (i % 5) * 0.3, -0.7);
+  }
+  body_.setVelocities(velocities);
+  body_.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+  const Points clean = observedPose(rest_, 0.0);
+  const Points still(rest_.size(), Eigen::Vector3d::Zero());
+  for (ShapeMatchingBody* b : {&body_, &fresh_}) {
+    b->setPositions(clean);
+    b->setVelocities(still);
+  }
+  expectSameState(body_, fresh_, kToleranceM, kSizeM, "placed and stopped");
+  for (int s = 0; s < 50; ++s) {
+    body_.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    fresh_.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+  }
+  expectSameState(body_, fresh_, kToleranceM, kSizeM, "50 steps later");
+}
+
+INSTANTIATE_TEST_SUITE_P(Matrix, AbsurdInputTest,
+                         ::testing::ValuesIn(absurdInputCases({1e30, 1e100, 1e200})),
+                         [](const auto& info) { return info.param.name; });
+
+// A cluster with no observed point keeps its last transform; one made not finite by steps
+// at 1e307 m/s (the goals' pull overflows) gives way to a fresh body's, and its points go
+// where a fresh body's would.
+TEST(AbsurdInput, AClusterUnobservedAfterStepsToOverflowTakesAFreshBodysPlace) {
+  const Points rest = sampleBox(600, {0.5, 0.3, 0.2}, 23);
+  for (const AbsurdInputCase& c : absurdInputCases({1e307})) {
+    ShapeMatchingBody body(rest, configFor(c.mode, c.clusters));
+    ShapeMatchingBody fresh(rest, configFor(c.mode, c.clusters));
+    body.setVelocities(Points(rest.size(), 1e307 * Eigen::Vector3d(0.6, -0.8, 0.1)));
+    for (int s = 0; s < 3; ++s) body.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    ASSERT_FALSE(body.deformation(0).transform.allFinite() &&
+                 body.deformation(0).translation.allFinite())
+        << c.name;
+    Points blind = observedPose(rest, 0.0);
+    for (const std::uint32_t i : body.cluster(0).points) {
+      blind[i].setConstant(std::numeric_limits<double>::quiet_NaN());
+    }
+    EXPECT_EQ(body.track(blind), fresh.track(blind)) << c.name;
+    expectSameState(body, fresh, 0.0, 0.5, c.name + ", cluster 0 unobserved");
+  }
+}
+
+// ---------------------------------------------------------------------------------------
 // Stability matrix: every mode, stiffness 0 to 1, steps up to 0.1 s, degenerate and inverted
 // clusters (docs/design.md, "Shape matching"). Every case runs 300 steps under gravity twice:
 // with the default goals (volume-preserving, damping 0.1) and undamped with conservative
