@@ -314,6 +314,81 @@ TEST(EnclosureRandomised, ManySeedsEveryMode) {
   }
 }
 
+// After absurd but finite input (a tracked cloud with 1% of its points at 1e100 or 1e200 m,
+// a step at 1e30 or 1e200 m/s), the next valid input gives the spheres of a fresh body given
+// it, bit for bit: finite, around every point, and as tight.
+
+struct AbsurdSpheresCase {
+  std::string name;
+  DeformationMode mode;
+  double magnitude;
+  bool absurd_speed;  ///< A step at `magnitude` m/s, then placed and stopped; else a cloud.
+};
+
+// Named in gtest output instead of as a byte dump.
+void PrintTo(const AbsurdSpheresCase& c, std::ostream* os) { *os << c.name; }
+
+std::vector<AbsurdSpheresCase> absurdSpheresCases() {
+  std::vector<AbsurdSpheresCase> cases;
+  for (const auto mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    const std::string m = toString(mode);
+    cases.push_back({m + "_cloud_at_1e100", mode, 1e100, false});
+    cases.push_back({m + "_cloud_at_1e200", mode, 1e200, false});
+    cases.push_back({m + "_step_at_1e30", mode, 1e30, true});
+    cases.push_back({m + "_step_at_1e200", mode, 1e200, true});
+  }
+  return cases;
+}
+
+class AbsurdSpheresTest : public ::testing::TestWithParam<AbsurdSpheresCase> {};
+
+TEST_P(AbsurdSpheresTest, TheNextValidInputGivesAFreshBodysSpheres) {
+  const auto& c = GetParam();
+  const Points rest = sampleEllipsoid(1000, {0.4, 0.25, 0.15}, 29);
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.6, Eigen::Vector3d(2, 1, 0).normalized()).matrix();
+  const Points good = mapped(rest, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return turn * Eigen::Vector3d(p.x(), p.y() + p.x() * p.x(), p.z()) + Eigen::Vector3d(2, 1, 0.5);
+  });
+  ShapeMatchingBody body(rest, configFor(c.mode, 3));
+  ShapeMatchingBody fresh(rest, configFor(c.mode, 3));
+  if (c.absurd_speed) {
+    body.setVelocities(Points(rest.size(), c.magnitude * Eigen::Vector3d(0.6, -0.8, 0.1)));
+    body.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    for (ShapeMatchingBody* b : {&body, &fresh}) {
+      b->setPositions(good);
+      b->setVelocities(Points(rest.size(), Eigen::Vector3d::Zero()));
+    }
+  } else {
+    Points absurd = good;
+    for (std::size_t i = 5; i < absurd.size(); i += 100) absurd[i][i % 3] = c.magnitude;
+    body.track(absurd);
+    body.track(good);
+    fresh.track(good);
+  }
+  for (const auto method :
+       {SphereUpdate::kDeformation, SphereUpdate::kExactRefit, SphereUpdate::kBottomUpRefit}) {
+    SphereTree tree(body, {2, 6});
+    SphereTree fresh_tree(fresh, {2, 6});
+    tree.beginCycle(method);
+    fresh_tree.beginCycle(method);
+    for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
+      const Sphere& s = tree.sphere(i);
+      ASSERT_TRUE(s.center.allFinite() && std::isfinite(s.radius)) << "node " << i;
+      EXPECT_EQ(s.center, fresh_tree.sphere(i).center) << "node " << i;
+      EXPECT_EQ(s.radius, fresh_tree.sphere(i).radius) << "node " << i;
+      const auto& node = tree.node(i);
+      for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+        ASSERT_LE((body.positions()[tree.pointIndices()[slot]] - s.center).norm(), s.radius)
+            << "node " << i << " point " << tree.pointIndices()[slot];
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, AbsurdSpheresTest, ::testing::ValuesIn(absurdSpheresCases()),
+                         [](const auto& info) { return info.param.name; });
+
 TEST(LazyUpdate, OnlyAskedSpheresAreComputedOncePerCycle) {
   ShapeMatchingBody body(sampleBox(2000, {1, 1, 1}, 3), configFor(DeformationMode::kQuadratic, 2));
   SphereTree tree(body, {2, 8});
