@@ -134,7 +134,7 @@ class ShapeMatchingBody {
   /// its sums, the rotations as warm starts) unless that state is not finite or its centre
   /// lies over 1000 rest extents from the new points' own: it then starts as a fresh body
   /// does, so that after absurd but finite input (points at 1e100 m, a step at 1e30 m/s)
-  /// the next valid input gives a fresh body's state, bit for bit.
+  /// the next valid input gives a fresh body's state, to rounding.
   /// @return the number of unobserved points.
   /// @throw std::invalid_argument if the size differs; the state is then unchanged.
   std::size_t track(const std::vector<Eigen::Vector3d>& observed_points);

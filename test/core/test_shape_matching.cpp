@@ -633,8 +633,8 @@ TEST(Track, WrongSizeThrowsAndLeavesTheStateAlone) {
 // ---------------------------------------------------------------------------------------
 // Recovery from absurd but finite input: a cloud with 1% of its points at 1e100 or 1e200 m,
 // a step at 1e30 or 1e200 m/s. The next valid input must give the state a fresh body given
-// the same input has, bit for bit, and the same trajectory after it: nothing of the absurd
-// state carries.
+// the same input has, to rounding (1e-12 m on a 1 m body), and the same trajectory after it:
+// nothing of the absurd state carries.
 
 struct AbsurdInputCase {
   std::string name;
@@ -709,8 +709,10 @@ Points withPointsFarOut(Points points, double magnitude) {
 class AbsurdInputTest : public ::testing::TestWithParam<AbsurdInputCase> {
  protected:
   static constexpr double kSizeM = 0.5;  ///< Largest half extent of the rest box.
-  /// Bit for bit: the body starts afresh from the state a fresh body has.
-  static constexpr double kToleranceM = 0.0;
+  /// To rounding: a damaged cluster starts afresh from a fresh body's state, but a cluster
+  /// the absurd input left intact carries on about its own centre of mass, which a compiler
+  /// may round differently in the last bits (clang does here, GCC does not).
+  static constexpr double kToleranceM = 1e-12;
   const Points rest_ = sampleBox(600, {kSizeM, 0.3, 0.2}, 23);
   ShapeMatchingBody body_{rest_, configFor(GetParam().mode, GetParam().clusters)};
   ShapeMatchingBody fresh_{rest_, configFor(GetParam().mode, GetParam().clusters)};
@@ -786,7 +788,7 @@ TEST(AbsurdInput, AClusterUnobservedAfterStepsToOverflowTakesAFreshBodysPlace) {
       blind[i].setConstant(std::numeric_limits<double>::quiet_NaN());
     }
     EXPECT_EQ(body.track(blind), fresh.track(blind)) << c.name;
-    expectSameState(body, fresh, 0.0, 0.5, c.name + ", cluster 0 unobserved");
+    expectSameState(body, fresh, 1e-12, 0.5, c.name + ", cluster 0 unobserved");
   }
 }
 
