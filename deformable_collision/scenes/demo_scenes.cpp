@@ -137,44 +137,39 @@ void buildGripper(Scene& scene, std::size_t points) {
   driveDemoScene(DemoScene::kGripper, scene, 0.0);
 }
 
+/// A scene's soft points when none are asked for, the fewest its objects can be built from,
+/// and a contact distance of about their spacing at the default count.
+struct SceneDefaults {
+  std::size_t point_count;
+  std::size_t least_point_count;
+  double contact_distance_m;
+};
+
+SceneDefaults sceneDefaults(DemoScene scene) {
+  switch (scene) {
+    case DemoScene::kTwoObjects:
+      return {16000, 20, 0.025};
+    case DemoScene::kPile:
+      return {131000, 300 * 10, 0.02};
+    case DemoScene::kThreeObjects:
+      return {19000, 60, 0.02};
+    case DemoScene::kGripper:
+      return {10000, 50, 0.012};
+  }
+  return {0, 0, 0.0};
+}
+
 }  // namespace
 
-/// About the point spacing of the scene's objects at the default point count.
-double sceneContactDistance(DemoScene scene) {
-  switch (scene) {
-    case DemoScene::kTwoObjects:
-      return 0.025;
-    case DemoScene::kPile:
-      return 0.02;
-    case DemoScene::kThreeObjects:
-      return 0.02;
-    case DemoScene::kGripper:
-      return 0.012;
-  }
-  return 0.0;
-}
-
-std::size_t defaultPointCount(DemoScene scene) {
-  switch (scene) {
-    case DemoScene::kTwoObjects:
-      return 16000;
-    case DemoScene::kPile:
-      return 131000;
-    case DemoScene::kThreeObjects:
-      return 19000;
-    case DemoScene::kGripper:
-      return 10000;
-  }
-  return 0;
-}
+std::size_t defaultPointCount(DemoScene scene) { return sceneDefaults(scene).point_count; }
 
 std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points, SceneConfig config) {
-  if (points == 0) points = defaultPointCount(scene);
-  const std::size_t least[] = {20, 300 * 10, 60, 50};
-  requirePoints(points, least[static_cast<int>(scene)], scene);
+  const SceneDefaults defaults = sceneDefaults(scene);
+  if (points == 0) points = defaults.point_count;
+  requirePoints(points, defaults.least_point_count, scene);
   config.gravity_mps2 = scene == DemoScene::kTwoObjects ? Eigen::Vector3d::Zero()
                                                         : Eigen::Vector3d(0.0, 0.0, -9.81);
-  config.contact_distance_m = std::max(config.contact_distance_m, sceneContactDistance(scene));
+  config.contact_distance_m = std::max(config.contact_distance_m, defaults.contact_distance_m);
   auto built = std::make_unique<Scene>(config);
   switch (scene) {
     case DemoScene::kTwoObjects:
