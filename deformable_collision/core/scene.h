@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "deformable_collision/core/cloud_registration.h"
 #include "deformable_collision/core/collision_query.h"
 #include "deformable_collision/core/enum_names.h"
 #include "deformable_collision/core/shape_matching.h"
@@ -48,6 +49,7 @@ struct SceneConfig {
   /// pair drops by at most this times the approach speed the contact stops.
   double friction = 0.5;
   SphereTreeConfig tree;
+  RegistrationConfig registration;  ///< Of tracked objects' unordered clouds (registerCloud).
 };
 
 /// A contact between two objects of the scene, at `contact.level`.
@@ -109,6 +111,12 @@ class Scene {
   /// @return the number of unobserved points.
   /// @throw std::invalid_argument if the object is not tracked or the size differs.
   std::size_t observe(std::size_t object, const std::vector<Eigen::Vector3d>& points_m);
+
+  /// Fits a tracked object's model to an unordered, partial, noisy cloud of it (any size
+  /// and order, non-finite points skipped; see CloudRegistration). A cloud that does not
+  /// show the object leaves it where it was (`held`).
+  /// @throw std::invalid_argument if the object is not tracked.
+  RegistrationReport registerCloud(std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m);
 
   /// One cycle; its contacts are contacts() and its figures stats().
   void cycle();
