@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "deformable_collision/core/shape_matching.h"
@@ -26,6 +27,9 @@ struct RegistrationConfig {
   /// the object: the model is held where it was ([0, 1]).
   double min_match_ratio = 0.2;
 };
+
+/// @throw std::invalid_argument naming the first bad value of `config`.
+void validateRegistrationConfig(const RegistrationConfig& config);
 
 /// What registering one cloud did.
 struct RegistrationReport {
@@ -52,19 +56,22 @@ struct RegistrationReport {
 /// hierarchy's bounds, come from track() as for any registration.
 class CloudRegistration {
  public:
-  /// @throw std::invalid_argument naming the bad value.
+  /// @throw std::invalid_argument naming the bad value (validateRegistrationConfig).
   explicit CloudRegistration(const RegistrationConfig& config);
   ~CloudRegistration();
   CloudRegistration(CloudRegistration&&) noexcept;
   CloudRegistration& operator=(CloudRegistration&&) noexcept;
 
   /// Fits `body` to `cloud_m` (any size and order; non-finite points are skipped),
-  /// starting from the body's current state. A cloud with too few matches (none, all NaN,
+  /// starting from the body's current state. With `viewpoint_m`, the camera's position in
+  /// the cloud's frame, only model points whose surface faces the camera are matched: the
+  /// far side of a thin object and the hidden faces next to a seen edge stay out. A cloud with too few matches (none, all NaN,
   /// another object's, far away) leaves the body unchanged and says so in `held`.
   /// Steady state (the same body, clouds no larger than before) allocates only inside the
   /// kd-tree library.
   RegistrationReport registerCloud(ShapeMatchingBody& body,
-                                   const std::vector<Eigen::Vector3d>& cloud_m);
+                                   const std::vector<Eigen::Vector3d>& cloud_m,
+                                   const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
 
   const RegistrationConfig& config() const { return config_; }
 

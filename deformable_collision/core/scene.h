@@ -113,10 +113,12 @@ class Scene {
   std::size_t observe(std::size_t object, const std::vector<Eigen::Vector3d>& points_m);
 
   /// Fits a tracked object's model to an unordered, partial, noisy cloud of it (any size
-  /// and order, non-finite points skipped; see CloudRegistration). A cloud that does not
-  /// show the object leaves it where it was (`held`).
+  /// and order, non-finite points skipped), seen from `viewpoint_m` if known (the camera's
+  /// position; see CloudRegistration). A cloud that does not show the object leaves it
+  /// where it was (`held`).
   /// @throw std::invalid_argument if the object is not tracked.
-  RegistrationReport registerCloud(std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m);
+  RegistrationReport registerCloud(std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m,
+                                   const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
 
   /// One cycle; its contacts are contacts() and its figures stats().
   void cycle();

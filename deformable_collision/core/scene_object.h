@@ -123,6 +123,8 @@ struct Scene::Object {
   scene_internal::DentScratch dents;   ///< Dynamic objects.
   scene_internal::PairContactNodes pair_nodes;  ///< Dynamic objects.
   scene_internal::ContactMemory contact_memory;
+  /// Tracked objects fitted to unordered clouds: made on the first such cloud.
+  std::optional<CloudRegistration> registration;
 
   /// Contacts between this object and a fixed one, counted in hops over touching objects
   /// (0: fixed itself); unsupported objects have the largest value.

@@ -1,0 +1,311 @@
+// CloudRegistration: known deformations recovered from unordered, partial, noisy clouds.
+#include "deformable_collision/core/cloud_registration.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/shape_matching.h"
+#include "deformable_collision/core/sphere_tree.h"
+
+namespace deformable_collision {
+namespace {
+
+using Points = std::vector<Eigen::Vector3d>;
+using Deformation = std::function<Eigen::Vector3d(const Eigen::Vector3d&, double)>;
+
+const Eigen::Vector3d kHalfExtents(0.05, 0.03, 0.02);  // A 10 x 6 x 4 cm sponge.
+
+/// Uniform samples of the surface of the box, with the outward normal of each one's face.
+struct SurfaceSamples {
+  Points points;
+  Points normals;
+};
+
+SurfaceSamples boxSurface(std::size_t count, std::uint64_t seed) {
+  std::mt19937_64 random(seed);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const Eigen::Vector3d& h = kHalfExtents;
+  const double areas[3] = {h.y() * h.z(), h.x() * h.z(), h.x() * h.y()};  // Faces normal to x, y, z.
+  const double total = areas[0] + areas[1] + areas[2];
+  std::uniform_real_distribution<double> pick(0.0, total);
+  SurfaceSamples samples;
+  for (std::size_t k = 0; k < count; ++k) {
+    const double r = pick(random);
+    const int axis = r < areas[0] ? 0 : (r < areas[0] + areas[1] ? 1 : 2);
+    Eigen::Vector3d p(unit(random) * h.x(), unit(random) * h.y(), unit(random) * h.z());
+    const double side = unit(random) < 0.0 ? -1.0 : 1.0;
+    p[axis] = side * h[axis];
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    normal[axis] = side;
+    samples.points.push_back(p);
+    samples.normals.push_back(normal);
+  }
+  return samples;
+}
+
+/// A camera looking along -view_from sees the faces whose normal points towards it.
+bool facesCamera(const Eigen::Vector3d& normal, const std::optional<Eigen::Vector3d>& view_from) {
+  return !view_from || normal.dot(*view_from) > 0.0;
+}
+
+// Known deformations, reached at amount 1.
+Eigen::Vector3d rigidMotion(const Eigen::Vector3d& p, double amount) {
+  const Eigen::AngleAxisd turn(amount * 0.35, Eigen::Vector3d(0.3, 0.2, 1.0).normalized());
+  return turn * p + amount * Eigen::Vector3d(0.03, -0.02, 0.01);
+}
+
+Eigen::Vector3d affineStretch(const Eigen::Vector3d& p, double amount) {
+  Eigen::Matrix3d a;
+  a << 1.15, 0.06, 0.0, 0.0, 0.88, 0.04, 0.02, 0.0, 1.1;
+  const Eigen::Matrix3d blended = Eigen::Matrix3d::Identity() + amount * (a - Eigen::Matrix3d::Identity());
+  return blended * p + amount * Eigen::Vector3d(0.01, 0.0, -0.005);
+}
+
+/// Bends the sponge's length (x) about y by 30 degrees in all.
+Eigen::Vector3d bend(const Eigen::Vector3d& p, double amount) {
+  const double angle = amount * M_PI / 6.0;
+  if (angle == 0.0) return p;
+  const double radius = 2.0 * kHalfExtents.x() / angle;
+  const double along = p.x() / radius;
+  return {(radius + p.z()) * std::sin(along), p.y(), (radius + p.z()) * std::cos(along) - radius};
+}
+
+/// Twists the sponge about its length by 30 degrees from end to end.
+Eigen::Vector3d twist(const Eigen::Vector3d& p, double amount) {
+  const double angle = amount * (M_PI / 6.0) * p.x() / (2.0 * kHalfExtents.x());
+  const Eigen::AngleAxisd turn(angle, Eigen::Vector3d::UnitX());
+  return turn * p;
+}
+
+/// A camera's view of the deformed sponge: fresh surface samples (never the model's points)
+/// on the faces it sees, Gaussian noise, a share of outliers in a box around the object and
+/// a few NaN pixels.
+Points cloudOf(const Deformation& deform, double amount, std::size_t count,
+               const std::optional<Eigen::Vector3d>& view_from, double noise_m,
+               double outlier_ratio, std::uint64_t seed) {
+  const SurfaceSamples surface = boxSurface(count, seed);
+  std::mt19937_64 random(seed + 1);
+  std::normal_distribution<double> noise(0.0, noise_m);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Points cloud;
+  for (std::size_t k = 0; k < surface.points.size(); ++k) {
+    if (!facesCamera(surface.normals[k], view_from)) continue;
+    Eigen::Vector3d p = deform(surface.points[k], amount);
+    if (noise_m > 0.0) p += Eigen::Vector3d(noise(random), noise(random), noise(random));
+    cloud.push_back(p);
+  }
+  const auto outliers = static_cast<std::size_t>(outlier_ratio * static_cast<double>(cloud.size()));
+  const Eigen::Vector3d reach = kHalfExtents + Eigen::Vector3d::Constant(0.03);
+  for (std::size_t k = 0; k < outliers; ++k) {
+    cloud.push_back(deform(Eigen::Vector3d(unit(random) * reach.x(), unit(random) * reach.y(),
+                                           unit(random) * reach.z()),
+                           amount));
+  }
+  std::shuffle(cloud.begin(), cloud.end(), random);
+  for (std::size_t k = 0; k < cloud.size(); k += 50) cloud[k].setConstant(std::nan(""));
+  return cloud;
+}
+
+struct RegistrationCase {
+  const char* name;
+  DeformationMode mode;
+  int clusters;
+  Deformation deform;
+  std::optional<Eigen::Vector3d> view_from;  ///< std::nullopt: every face seen.
+  double noise_m;
+  double outlier_ratio;
+  double seen_mean_m, seen_max_m;      ///< Tolerances of the model's points on seen faces.
+  double hidden_mean_m, hidden_max_m;  ///< ... and on the faces the camera never sees.
+};
+
+void PrintTo(const RegistrationCase& c, std::ostream* os) { *os << c.name; }
+
+class KnownDeformationTest : public ::testing::TestWithParam<RegistrationCase> {};
+
+// The deformation is reached over 10 clouds, as a camera sees it happen, each registered
+// from the last one's state.
+TEST_P(KnownDeformationTest, RecoversTheModelsPoints) {
+  const RegistrationCase& c = GetParam();
+  const SurfaceSamples model = boxSurface(4000, 7);
+  ShapeMatchingConfig shape;
+  shape.mode = c.mode;
+  shape.clusters = c.clusters;
+  shape.damping = 0.0;
+  ShapeMatchingBody body(model.points, shape);
+  CloudRegistration registration{RegistrationConfig{}};
+  constexpr int kClouds = 20;
+  RegistrationReport report;
+  for (int frame = 1; frame <= kClouds; ++frame) {
+    const double amount = static_cast<double>(frame) / kClouds;
+    std::optional<Eigen::Vector3d> camera;
+    if (c.view_from) camera = 0.5 * c.view_from->normalized();
+    report = registration.registerCloud(
+        body, cloudOf(c.deform, amount, 6000, c.view_from, c.noise_m, c.outlier_ratio, 100 + frame),
+        camera);
+    ASSERT_FALSE(report.held) << "cloud " << frame;
+  }
+  double seen_sum = 0.0, seen_max = 0.0, hidden_sum = 0.0, hidden_max = 0.0;
+  std::size_t seen = 0, hidden = 0;
+  for (std::size_t i = 0; i < model.points.size(); ++i) {
+    const double error = (body.positions()[i] - c.deform(model.points[i], 1.0)).norm();
+    ASSERT_TRUE(std::isfinite(error));
+    if (facesCamera(model.normals[i], c.view_from)) {
+      seen_sum += error, seen_max = std::max(seen_max, error), ++seen;
+    } else {
+      hidden_sum += error, hidden_max = std::max(hidden_max, error), ++hidden;
+    }
+  }
+  EXPECT_LE(seen_sum / seen, c.seen_mean_m) << "mean error on the seen side (m)";
+  EXPECT_LE(seen_max, c.seen_max_m) << "largest error on the seen side (m)";
+  if (hidden > 0) {
+    EXPECT_LE(hidden_sum / hidden, c.hidden_mean_m) << "mean error on the hidden side (m)";
+    EXPECT_LE(hidden_max, c.hidden_max_m) << "largest error on the hidden side (m)";
+  }
+  EXPECT_GT(report.used_points, 0u);
+  EXPECT_LE(report.mean_residual_m, 3.0 * c.noise_m + 1e-3);
+  std::printf("%-28s seen mean %.2f max %.2f mm, hidden mean %.2f max %.2f mm, %zu used %zu rejected, %.2f ms\n",
+              c.name, 1e3 * seen_sum / seen, 1e3 * seen_max, hidden ? 1e3 * hidden_sum / hidden : 0.0,
+              1e3 * hidden_max, report.used_points, report.rejected_points, report.time_ms);
+}
+
+const Eigen::Vector3d kOneSide(1.0, -1.0, 2.0);  // Sees the top, a long side and an end: half the surface.
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, KnownDeformationTest,
+    ::testing::Values(
+        RegistrationCase{"rigid_full", DeformationMode::kRigid, 1, rigidMotion, std::nullopt, 0.0, 0.0, 0.5e-3, 1e-3, 0, 0},
+        RegistrationCase{"rigid_one_side_noisy", DeformationMode::kRigid, 1, rigidMotion, kOneSide, 0.001, 0.05, 0.5e-3, 1e-3, 0.5e-3, 1e-3},
+        RegistrationCase{"affine_full", DeformationMode::kLinear, 1, affineStretch, std::nullopt, 0.0, 0.0, 0.5e-3, 1e-3, 0, 0},
+        RegistrationCase{"twist_quadratic_full_noisy", DeformationMode::kQuadratic, 3, twist, std::nullopt, 0.001, 0.05, 1.5e-3, 3e-3, 0, 0},
+        // Seen from one side, a stretch along a seen face shows only where the face ends:
+        // point-to-plane matches leave it to the prior, and these errors are several
+        // times the noise (the targets of docs/design.md, registration, are not met yet).
+        RegistrationCase{"affine_one_side_noisy", DeformationMode::kLinear, 4, affineStretch, kOneSide, 0.001, 0.05, 10e-3, 20e-3, 15e-3, 25e-3},
+        RegistrationCase{"bend_linear_one_side_noisy", DeformationMode::kLinear, 8, bend, kOneSide, 0.001, 0.05, 5e-3, 18e-3, 10e-3, 20e-3},
+        RegistrationCase{"bend_quadratic_one_side_noisy", DeformationMode::kQuadratic, 3, bend, kOneSide, 0.001, 0.05, 5e-3, 15e-3, 7e-3, 16e-3},
+        RegistrationCase{"twist_linear_one_side_noisy", DeformationMode::kLinear, 8, twist, kOneSide, 0.001, 0.05, 6e-3, 12e-3, 6e-3, 12e-3}),
+    [](const ::testing::TestParamInfo<RegistrationCase>& info) { return std::string(info.param.name); });
+
+/// The largest distance by which a point of a node lies outside the node's sphere shrunk
+/// by `shrink_m(node)`, over every node of the tree (<= 0: all inside).
+double worstOverhang(SphereTree& tree, const ShapeMatchingBody& body,
+                     const std::function<double(const SphereNode&)>& shrink_m) {
+  tree.beginCycle();
+  double worst = -std::numeric_limits<double>::infinity();
+  for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
+    const Sphere& sphere = tree.sphere(n);
+    const SphereNode& node = tree.node(n);
+    for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+      const double outside = (body.positions()[tree.pointIndices()[slot]] - sphere.center).norm() -
+                              (sphere.radius - shrink_m(node));
+      worst = std::max(worst, outside);
+    }
+  }
+  return worst;
+}
+
+// The hierarchy is updated from the registration as from shape matching: every model point
+// stays inside every sphere that holds it after every cloud, and the fit's residual d is
+// what makes it so (spheres without it miss points).
+TEST(RegisteredHierarchy, EncloresEveryModelPointAfterEveryCloud) {
+  const SurfaceSamples model = boxSurface(3000, 11);
+  for (const DeformationMode mode : {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    ShapeMatchingConfig shape;
+    shape.mode = mode;
+    shape.clusters = 4;
+    ShapeMatchingBody body(model.points, shape);
+    SphereTree tree(body, {2, 6});
+    CloudRegistration registration{RegistrationConfig{}};
+    double worst_without_d = -1.0;
+    for (int frame = 1; frame <= 12; ++frame) {
+      const double amount = frame / 12.0;
+      const auto deform = [&](const Eigen::Vector3d& p, double a) { return twist(bend(p, a), a); };
+      registration.registerCloud(body, cloudOf(deform, amount, 4000, kOneSide, 0.002, 0.05, 300 + frame),
+                                 Eigen::Vector3d(0.5 * kOneSide.normalized()));
+      ASSERT_LE(worstOverhang(tree, body, [](const SphereNode&) { return 0.0; }), 0.0)
+          << toString(mode) << " cloud " << frame;
+      worst_without_d = std::max(
+          worst_without_d, worstOverhang(tree, body, [&](const SphereNode& node) {
+            return node.cluster < 0 ? 0.0 : body.deformation(node.cluster).goal_deviation_bound_m;
+          }));
+    }
+    EXPECT_GT(worst_without_d, 0.0) << toString(mode) << ": spheres without d would not miss a point";
+  }
+}
+
+// A cloud that does not show the object leaves the model where it was, and says so.
+TEST(HeldCloud, ModelStaysForCloudsThatMissTheObject) {
+  const SurfaceSamples model = boxSurface(2000, 5);
+  ShapeMatchingBody body(model.points, ShapeMatchingConfig{});
+  CloudRegistration registration{RegistrationConfig{}};
+  const Points before = body.positions();
+  Points far_away = model.points;
+  for (auto& p : far_away) p += Eigen::Vector3d(5.0, 0.0, 0.0);
+  const Points all_nan(500, Eigen::Vector3d::Constant(std::nan("")));
+  const std::vector<std::pair<const char*, Points>> misses = {
+      {"empty", {}}, {"all NaN", all_nan}, {"far away", far_away}};
+  for (const auto& [name, cloud] : misses) {
+    const RegistrationReport report = registration.registerCloud(body, cloud);
+    EXPECT_TRUE(report.held) << name;
+    EXPECT_EQ(report.used_points, 0u) << name;
+    EXPECT_EQ(body.positions(), before) << name;
+  }
+  // Clouds of any size after a miss register again.
+  for (const std::size_t count : {300, 5000, 900}) {
+    const RegistrationReport report =
+        registration.registerCloud(body, cloudOf(rigidMotion, 0.02, count, std::nullopt, 0.0, 0.0, count));
+    EXPECT_FALSE(report.held) << count << " points";
+    EXPECT_GT(report.used_points, 3 * report.rejected_points) << count << " points";
+  }
+}
+
+// Scene::registerCloud takes tracked objects only; a registered cloud moves the object in
+// the next cycle's contacts, a held one does not count as a move.
+TEST(SceneRegistration, TrackedObjectsOnly) {
+  Scene scene{SceneConfig{}};
+  ObjectConfig wall{"wall", ObjectKind::kStatic, {}};
+  ObjectConfig sponge{"sponge", ObjectKind::kTracked, {}};
+  const std::size_t wall_index = scene.addObject(wall, boxSurface(500, 1).points);
+  const std::size_t sponge_index = scene.addObject(sponge, boxSurface(2000, 2).points);
+  EXPECT_THROW(scene.registerCloud(wall_index, boxSurface(500, 3).points), std::invalid_argument);
+  EXPECT_TRUE(scene.registerCloud(sponge_index, {}).held);
+  EXPECT_EQ(scene.stats().objects_moved, 0u);
+  const RegistrationReport report = scene.registerCloud(
+      sponge_index, cloudOf(rigidMotion, 0.05, 3000, std::nullopt, 0.0, 0.0, 9));
+  EXPECT_FALSE(report.held);
+  EXPECT_EQ(scene.stats().objects_moved, 1u);
+  SceneConfig bad_registration;
+  bad_registration.registration.iterations = 0;
+  EXPECT_THROW(Scene{bad_registration}, std::invalid_argument);
+}
+
+TEST(RegistrationConfigTest, RefusesBadValuesByName) {
+  const std::vector<std::pair<std::string, RegistrationConfig>> bad = {
+      {"iterations", RegistrationConfig{0}},
+      {"max_correspondence_m", RegistrationConfig{5, -1.0}},
+      {"max_correspondence_m", RegistrationConfig{5, std::nan("")}},
+      {"max_cloud_points", RegistrationConfig{5, 0.01, 0}},
+      {"max_model_points", RegistrationConfig{5, 0.01, 10, 0}},
+      {"min_match_ratio", RegistrationConfig{5, 0.01, 10, 10, 1.5}}};
+  for (const auto& [name, config] : bad) {
+    try {
+      CloudRegistration registration(config);
+      ADD_FAILURE() << name << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace deformable_collision
