@@ -19,6 +19,12 @@ double millisecondsBetween(Clock::time_point from, Clock::time_point to) {
   return std::chrono::duration<double, std::milli>(to - from).count();
 }
 
+Eigen::Vector3d meanOf(const std::vector<Eigen::Vector3d>& points) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& point : points) sum += point;
+  return sum / static_cast<double>(points.size());
+}
+
 }  // namespace
 
 Scene::Object::Object(const ObjectConfig& object_config, std::vector<Eigen::Vector3d> rest_points,
@@ -94,7 +100,7 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("object '" + config.name + "': " + e.what());
   }
-  if (!made->dynamic()) made->planes.compute(made->body, made->tree);
+  if (!made->dynamic()) made->planes.compute(made->body, made->tree, config_.contact_distance_m);
   if (config.kind == ObjectKind::kStatic) {
     // A wall's root sphere spans the room; its points' box is what it really covers.
     for (const auto& point : made->body.positions()) made->sweep_box.extend(point);
@@ -166,6 +172,7 @@ void Scene::cycle() {
   const auto start = Clock::now();
   for (auto& object : objects_) {
     if (!object->dynamic()) continue;
+    object->center_before_step = meanOf(object->body.positions());
     object->body.step(config_.dt_s, config_.gravity_mps2);
     object->stale = true;
     ++stats_.objects_moved;

@@ -195,8 +195,12 @@ class Scene {
   Eigen::Vector3d separatingNormal(const ResolvingPair& pair);
   /// One push per contact still too deep into pushes_.
   void collectPushes(const ResolvingPair& pair);
+  struct FixedSurface;
+  /// The surface of the fixed object's `node` that faces the dynamic one.
+  FixedSurface fixedSurface(const ResolvingPair& pair, std::uint32_t node);
   bool pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& contact,
                           ContactPush& push);
+  void clearPassedPoints(ResolvingPair& pair);
   bool pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& contact,
                           ContactPush& push) const;
   void moveByMeanPush(ResolvingPair& pair);

@@ -1,5 +1,6 @@
-// Fixed planes: the rest plane of every node of a static or kinematic object, against
-// which the response measures how deep a dynamic object's points have gone.
+// Fixed planes: the rest plane of every node of a static or kinematic object and the
+// object's surfaces in line with the node, against which the response measures how deep a
+// dynamic object's points have gone.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 
@@ -45,18 +46,69 @@ std::vector<std::uint32_t> parentsOf(const SphereTree& tree) {
   return parent;
 }
 
+/// How far a node's own points reach from its centre along its normal, against it and
+/// across it.
+struct NodeReach {
+  double along = 0.0;
+  double against = 0.0;
+  double across = 0.0;
+};
+
+NodeReach reachOfNode(const ShapeMatchingBody& body, const SphereTree& tree, const SphereNode& node,
+                      const Eigen::Vector3d& center, const Eigen::Vector3d& normal) {
+  const auto& rest = body.restPositions();
+  NodeReach reach;
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    const Eigen::Vector3d d = rest[tree.pointIndices()[s]] - center;
+    const double offset = d.dot(normal);
+    reach.along = std::max(reach.along, offset);
+    reach.against = std::max(reach.against, -offset);
+    reach.across = std::max(reach.across, (d - offset * normal).norm());
+  }
+  return reach;
+}
+
+/// The offsets along `normal` of `within`'s points in line with `center`: those within
+/// `radius` of the line through it along the normal; sorted.
+void columnOffsets(const ShapeMatchingBody& body, const SphereTree& tree, const SphereNode& within,
+                   const Eigen::Vector3d& center, const Eigen::Vector3d& normal, double radius,
+                   std::vector<double>& offsets) {
+  offsets.clear();
+  const auto& rest = body.restPositions();
+  for (std::uint32_t s = within.first_point; s < within.first_point + within.point_count; ++s) {
+    const Eigen::Vector3d d = rest[tree.pointIndices()[s]] - center;
+    const double offset = d.dot(normal);
+    if ((d - offset * normal).norm() <= radius) offsets.push_back(offset);
+  }
+  std::sort(offsets.begin(), offsets.end());
+}
+
+/// How far the column's points reach from `start` in `sign`'s direction, through no gap
+/// wider than `gap_m`: the surface of a layered or solid slab, not what lies beyond a gap.
+template <typename Iterator>
+double reachAcrossGaps(Iterator first, Iterator last, double start, double sign, double gap_m) {
+  double reach = start;
+  for (; first != last; ++first) {
+    const double offset = sign * *first;
+    if (offset <= reach) continue;
+    if (offset - reach > gap_m) break;
+    reach = offset;
+  }
+  return reach;
+}
+
 }  // namespace
 
-void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree) {
+void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree, double gap_m) {
   const std::uint32_t count = static_cast<std::uint32_t>(tree.nodeCount());
   const std::vector<std::uint32_t> parent = parentsOf(tree);
   std::vector<Eigen::Vector3d> own_normal(count);
   std::vector<std::uint8_t> planar(count, 0);
   fitOwnPlanes(body, tree, own_normal, planar);
-  const auto& rest = body.restPositions();
   normals.resize(count);
   extent_along.resize(count);
   extent_against.resize(count);
+  std::vector<double> offsets;
   for (std::uint32_t n = 0; n < count; ++n) {
     std::uint32_t source = n;
     while (!planar[source] && source != 0) source = parent[source];
@@ -67,16 +119,14 @@ void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree)
                          : Eigen::Vector3d(node.rest_center +
                                            body.cluster(node.cluster).rest_center_of_mass);
     // The sphere's centre need not lie midway between the layers of a slab (a few points
-    // of the top layer may fix the sphere), so each side is measured on its own.
-    double along = 0.0;
-    double against = 0.0;
-    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-      const double offset = (rest[tree.pointIndices()[s]] - center).dot(normals[n]);
-      along = std::max(along, offset);
-      against = std::max(against, -offset);
-    }
-    extent_along[n] = along;
-    extent_against[n] = against;
+    // of the top layer may fix the sphere), so each side is measured on its own. A column
+    // half a gap wider than the node's points still meets its neighbours in a lattice.
+    const NodeReach own = reachOfNode(body, tree, node, center, normals[n]);
+    columnOffsets(body, tree, tree.node(source), center, normals[n], own.across + 0.5 * gap_m,
+                  offsets);
+    extent_along[n] = reachAcrossGaps(offsets.begin(), offsets.end(), own.along, 1.0, gap_m);
+    extent_against[n] =
+        reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against, -1.0, gap_m);
   }
 }
 

@@ -17,12 +17,14 @@ namespace scene_internal {
 /// kinematic). A node's own points may be too few to span a plane (a leaf of a two-layer
 /// floor is a small cube), so it takes the normal of its nearest ancestor that is clearly
 /// planar, or the root's. The plane is anchored at the node's sphere centre; its surfaces
-/// are where the node's own points reach from there.
+/// are where the object reaches from there in line with the node, through gaps no wider
+/// than the contact distance, within that ancestor: a point deep in a thick floor is as
+/// deep as the floor's top above it, not as the small node it touches.
 struct FixedPlanes {
-  void compute(const ShapeMatchingBody& body, const SphereTree& tree);
+  void compute(const ShapeMatchingBody& body, const SphereTree& tree, double gap_m);
 
   std::vector<Eigen::Vector3d> normals;  ///< Per node, in the rest shape.
-  /// Per node: how far its points reach from its sphere's centre along the normal and
+  /// Per node: how far the object reaches from its sphere's centre along the normal and
   /// against it.
   std::vector<double> extent_along;
   std::vector<double> extent_against;
@@ -126,6 +128,9 @@ struct Scene::Object {
   /// Tracked objects fitted to unordered clouds: made on the first such cloud.
   std::optional<CloudRegistration> registration;
 
+  /// Dynamic objects: the mean of their points before this cycle's step, where a new
+  /// contact's side is seen from (a long step may carry the centre past a thin floor).
+  Eigen::Vector3d center_before_step = Eigen::Vector3d::Zero();
   /// Contacts between this object and a fixed one, counted in hops over touching objects
   /// (0: fixed itself); unsupported objects have the largest value.
   std::uint32_t support_depth = 0;

@@ -167,6 +167,7 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   collectPushes(pair);
   if (pushes_.empty()) return;
   moveByMeanPush(pair);
+  if (pair.one_side_fixed) clearPassedPoints(pair);
   // Dents wait until every pair has moved the object: a later pair may move it back, as
   // the second jaw of a gripper does, and a dent sized against this pair's move alone
   // would leave the first jaw's contact deep inside.
@@ -178,7 +179,9 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
 
 // The side a lies on, seen from b: as in the last cycle of this contact, or for a new
 // contact, where the objects' centres are. A fixed object's centre says little (a wall's
-// lies a metre above what touches it), so its side is where its touched nodes are.
+// lies a metre above what touches it), so its side is where its touched nodes are, and the
+// dynamic one's is where it was before the step: a long step may carry its centre past a
+// thin floor's nodes, and seen from there the floor would push it on through.
 Eigen::Vector3d Scene::sideOfA(const ResolvingPair& pair) {
   Object& a = pair.a;
   Object& b = pair.b;
@@ -197,7 +200,7 @@ Eigen::Vector3d Scene::sideOfA(const ResolvingPair& pair) {
     touched += fixed.tree.sphere(a_fixed ? c.node_a : c.node_b).center;
   }
   touched /= static_cast<double>(pair.run_end - pair.run_begin);
-  const Eigen::Vector3d moving_center = (a_fixed ? b : a).tree.sphere(0).center;
+  const Eigen::Vector3d& moving_center = (a_fixed ? b : a).center_before_step;
   return a_fixed ? Eigen::Vector3d(touched - moving_center)
                  : Eigen::Vector3d(moving_center - touched);
 }
@@ -216,39 +219,90 @@ void Scene::collectPushes(const ResolvingPair& pair) {
   }
 }
 
+struct Scene::FixedSurface {
+  Eigen::Vector3d away;         ///< The node's plane normal, towards the dynamic object.
+  Eigen::Vector3d plane_point;  ///< The node's sphere centre.
+  double reach = 0.0;           ///< How far the object's surface lies from it along away.
+};
+
+Scene::FixedSurface Scene::fixedSurface(const ResolvingPair& pair, std::uint32_t node) {
+  const bool a_fixed = !pair.a.dynamic();
+  Object& fixed = a_fixed ? pair.a : pair.b;
+  const int cluster = std::max(0, fixed.tree.node(node).cluster);
+  FixedSurface surface{fixed.body.deformation(cluster).rotation * fixed.planes.normals[node],
+                       fixed.tree.sphere(node).center, fixed.planes.extent_along[node]};
+  if (surface.away.dot(a_fixed ? Eigen::Vector3d(-pair.side_of_a) : pair.side_of_a) < 0.0) {
+    surface.away = -surface.away;
+    surface.reach = fixed.planes.extent_against[node];
+  }
+  return surface;
+}
+
 // Against a fixed object: its node's plane, oriented towards the dynamic object, and the
 // deepest point's signed distance. Unlike the distance to the nearest point, that depth
 // does not shrink or flip when points have passed a thin layer such as a floor.
 bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c,
                                ContactPush& push) {
   const bool a_fixed = !pair.a.dynamic();
-  Object& fixed = a_fixed ? pair.a : pair.b;
   const Object& moving = a_fixed ? pair.b : pair.a;
-  const std::uint32_t fixed_node = a_fixed ? c.node_a : c.node_b;
+  const FixedSurface surface = fixedSurface(pair, a_fixed ? c.node_a : c.node_b);
   const SphereNode& node = moving.tree.node(a_fixed ? c.node_b : c.node_a);
-  const int cluster = std::max(0, fixed.tree.node(fixed_node).cluster);
-  Eigen::Vector3d away =
-      fixed.body.deformation(cluster).rotation * fixed.planes.normals[fixed_node];
-  const Eigen::Vector3d plane_point = fixed.tree.sphere(fixed_node).center;
-  double surface = fixed.planes.extent_along[fixed_node];
-  if (away.dot(a_fixed ? Eigen::Vector3d(-pair.side_of_a) : pair.side_of_a) < 0.0) {
-    away = -away;
-    surface = fixed.planes.extent_against[fixed_node];
-  }
   // Pairs resolved before this one may have moved the object already.
-  double lowest = moving.translation.dot(away);
+  double lowest = moving.translation.dot(surface.away);
   double deepest = std::numeric_limits<double>::infinity();
   const auto& positions = moving.body.positions();
   for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-    deepest = std::min(deepest, (positions[moving.tree.pointIndices()[s]] - plane_point).dot(away));
+    deepest = std::min(deepest, (positions[moving.tree.pointIndices()[s]] - surface.plane_point)
+                                    .dot(surface.away));
   }
   lowest += deepest;
-  const double depth = surface + 0.5 * config_.contact_distance_m - lowest;
+  const double depth = surface.reach + 0.5 * config_.contact_distance_m - lowest;
   if (depth <= 0.0) return false;
-  push.normal = a_fixed ? Eigen::Vector3d(-away) : away;
+  push.normal = a_fixed ? Eigen::Vector3d(-surface.away) : surface.away;
   push.depth_a = a_fixed ? 0.0 : depth;
   push.depth_b = a_fixed ? depth : 0.0;
   return true;
+}
+
+// A long step carries points of a dynamic object past a thin fixed layer, beyond the
+// contact distance of any of its points, where no contact sees them; the contacts' pushes
+// then undo only about the layer's thickness of a step that took more. So the deepest of
+// the object's points in line with the touched nodes (within their spheres across the
+// pair's normal), measured against the highest of their surfaces, is cleared by moving the
+// whole object, when it lies deeper than the contacts reach: nothing dents those points.
+void Scene::clearPassedPoints(ResolvingPair& pair) {
+  const bool a_fixed = !pair.a.dynamic();
+  const Object& moving = a_fixed ? pair.b : pair.a;
+  Object& fixed = a_fixed ? pair.a : pair.b;
+  const Eigen::Vector3d away = (a_fixed ? -1.0 : 1.0) * pair.normal_sum.normalized();
+  const Eigen::Vector3d across_u = away.unitOrthogonal();
+  const Eigen::Vector3d across_v = away.cross(across_u);
+  Eigen::AlignedBox2d in_line;
+  double surface_level = -std::numeric_limits<double>::infinity();
+  for (std::size_t k = pair.run_begin; k < pair.run_end; ++k) {
+    const SphereContact& c = contacts_[k].contact;
+    const std::uint32_t node = a_fixed ? c.node_a : c.node_b;
+    const FixedSurface surface = fixedSurface(pair, node);
+    surface_level = std::max(surface_level, surface.plane_point.dot(away) + surface.reach);
+    const Sphere& sphere = fixed.tree.sphere(node);
+    const Eigen::Vector2d across(sphere.center.dot(across_u), sphere.center.dot(across_v));
+    in_line.extend(across - Eigen::Vector2d::Constant(sphere.radius));
+    in_line.extend(across + Eigen::Vector2d::Constant(sphere.radius));
+  }
+  double lowest = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3d& point : moving.body.positions()) {
+    if (in_line.contains(Eigen::Vector2d(point.dot(across_u), point.dot(across_v)))) {
+      lowest = std::min(lowest, point.dot(away));
+    }
+  }
+  const double depth = surface_level + 0.5 * config_.contact_distance_m - lowest -
+                       moving.translation.dot(away);
+  double deepest_push = 0.0;
+  for (const ContactPush& push : pushes_) deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
+  if (depth <= deepest_push + config_.contact_distance_m) return;
+  Eigen::Vector3d& move = a_fixed ? pair.move_b : pair.move_a;
+  const double moved = move.dot(away);
+  if (moved < depth) move += (depth - moved) * away;
 }
 
 // Two dynamic nodes, along the pair's normal, the depth shared by inverse mass. At the
