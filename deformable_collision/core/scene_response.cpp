@@ -268,8 +268,8 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
 // contact distance of any of its points, where no contact sees them; the contacts' pushes
 // then undo only about the layer's thickness of a step that took more. So the deepest of
 // the object's points in line with the touched nodes (within their spheres across the
-// pair's normal), measured against the highest of their surfaces, is cleared by moving the
-// whole object, when it lies deeper than the contacts reach: nothing dents those points.
+// pair's normal), measured against the highest of their surfaces, is brought back by moving
+// the whole object when it lies deeper than the contacts' pushes: nothing dents it.
 void Scene::clearPassedPoints(ResolvingPair& pair) {
   const bool a_fixed = !pair.a.dynamic();
   const Object& moving = a_fixed ? pair.b : pair.a;
@@ -299,10 +299,14 @@ void Scene::clearPassedPoints(ResolvingPair& pair) {
                        moving.translation.dot(away);
   double deepest_push = 0.0;
   for (const ContactPush& push : pushes_) deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
-  if (depth <= deepest_push + config_.contact_distance_m) return;
+  if (depth <= deepest_push) return;
+  // Points past the contacts' reach are cleared; those within it only brought back within
+  // the contact distance, where the next cycle's contacts see them.
+  const double needed =
+      depth > deepest_push + config_.contact_distance_m ? depth : depth - config_.contact_distance_m;
   Eigen::Vector3d& move = a_fixed ? pair.move_b : pair.move_a;
   const double moved = move.dot(away);
-  if (moved < depth) move += (depth - moved) * away;
+  if (moved < needed) move += (needed - moved) * away;
 }
 
 // Two dynamic nodes, along the pair's normal, the depth shared by inverse mass. At the
