@@ -376,9 +376,16 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidS
     const Eigen::Vector3d& normal = current_normals[m];
     addRow(positions[m] - center, normal, normal.dot(samples[j] - positions[m]));
   }
-  // Directions no match constrains (a flat view slides freely along itself) stay put.
-  const double damping = 1e-9 * std::max(normal_matrix.diagonal().maxCoeff(), 1e-300);
-  normal_matrix.diagonal().array() += damping;
+  // The prior of the clusters' fits holds the step too: a direction the matches constrain
+  // weakly (a flat view slides along itself, a face seen edge-on) moves only as far as
+  // they outweigh it, instead of as far as their noise says.
+  double arm_squared = 0.0;
+  for (std::size_t j = 0; j < samples.size(); ++j) {
+    if (distance_of_sample[j] <= threshold) arm_squared += (positions[match_of_sample[j]] - center).squaredNorm();
+  }
+  const double prior = kPriorWeight * static_cast<double>(used);
+  normal_matrix.diagonal().head<3>().array() += kPriorWeight * arm_squared + 1e-300;
+  normal_matrix.diagonal().tail<3>().array() += prior;
   const Eigen::Matrix<double, 6, 1> motion = normal_matrix.ldlt().solve(right_side);
   step.center = center;
   step.translation = motion.tail<3>().allFinite() ? Eigen::Vector3d(motion.tail<3>()) : Eigen::Vector3d::Zero();
