@@ -205,27 +205,33 @@ ModeParam readMode(ParamReader& read) {
   return {mode, *parsed, given};
 }
 
+/// Whether the clouds of an object with this on_cloud move a tracked object.
+bool followsClouds(OnCloud on_cloud) {
+  return on_cloud == OnCloud::kTrack || on_cloud == OnCloud::kRegister;
+}
+
 /// The kind follows from `dynamic`, `follow_frame` and `on_cloud`; the combinations that
 /// contradict each other are refused by the key that conflicts.
 ObjectKind objectKind(const ParamReader& read, const ObjectParams& params, bool dynamic,
                       const ModeParam& mode) {
+  const std::string on_cloud = std::string("= '") + toString(params.on_cloud) + "'";
   if (dynamic) {
     if (!params.follow_frame.empty()) {
       ParamReader::fail(read.name("follow_frame"),
                         "is set on a dynamic object; follow_frame moves a kinematic one "
                         "(dynamic: false)");
     }
-    if (params.on_cloud == OnCloud::kTrack) {
+    if (followsClouds(params.on_cloud)) {
       ParamReader::fail(read.name("on_cloud"),
-                        "= 'track' needs dynamic: false (a tracked object follows its clouds, "
-                        "a dynamic one is simulated)");
+                        on_cloud + " needs dynamic: false (a tracked object follows its clouds, "
+                                   "a dynamic one is simulated)");
     }
     return ObjectKind::kDynamic;
   }
   if (!params.follow_frame.empty()) {
-    if (params.on_cloud == OnCloud::kTrack) {
+    if (followsClouds(params.on_cloud)) {
       ParamReader::fail(read.name("on_cloud"),
-                        "= 'track' conflicts with follow_frame (the frame moves the object)");
+                        on_cloud + " conflicts with follow_frame (the frame moves the object)");
     }
     if (mode.given && mode.mode != DeformationMode::kRigid) {
       ParamReader::fail(read.name("mode"), "= '" + mode.text +
@@ -233,7 +239,43 @@ ObjectKind objectKind(const ParamReader& read, const ObjectParams& params, bool 
     }
     return ObjectKind::kKinematic;
   }
-  return params.on_cloud == OnCloud::kTrack ? ObjectKind::kTracked : ObjectKind::kStatic;
+  return followsClouds(params.on_cloud) ? ObjectKind::kTracked : ObjectKind::kStatic;
+}
+
+/// model_file and model_frame, read only by on_cloud register: a tracked object needs the
+/// cloud's own points in the cloud's order, and the others take their shape from a cloud.
+void readModel(ParamReader& read, ObjectParams& params) {
+  params.model_file = read.text("model_file", "");
+  params.model_frame = read.text("model_frame", "");
+  if (!params.model_file.empty() && params.on_cloud != OnCloud::kRegister) {
+    ParamReader::fail(read.name("model_file"),
+                      std::string("is read only with on_cloud: register, not '") +
+                          toString(params.on_cloud) + "' (whose rest shape is a cloud)");
+  }
+  if (!params.model_frame.empty() && params.model_file.empty()) {
+    ParamReader::fail(read.name("model_frame"), "places model_file, which is not set");
+  }
+  if (!params.model_frame.empty() && params.model_frame[0] == '/') {
+    ParamReader::fail(read.name("model_frame"), "= '" + params.model_frame +
+                                                    "' starts with '/', which tf2 refuses");
+  }
+}
+
+/// The node-wide `register` block: the work and the thresholds of every registration.
+void readRegistration(const XmlRpcValue& block, RegistrationConfig& registration) {
+  ParamReader read(block, "register");
+  constexpr long kLargestCount = std::numeric_limits<int>::max();
+  registration.iterations =
+      static_cast<int>(read.integer("iterations", registration.iterations, 1, 1000));
+  registration.max_correspondence_m =
+      read.number("max_correspondence_m", registration.max_correspondence_m, 0.0, 1e3, true);
+  registration.max_cloud_points = static_cast<std::size_t>(read.integer(
+      "max_cloud_points", static_cast<long>(registration.max_cloud_points), 1, kLargestCount));
+  registration.max_model_points = static_cast<std::size_t>(read.integer(
+      "max_model_points", static_cast<long>(registration.max_model_points), 1, kLargestCount));
+  registration.min_match_ratio =
+      read.number("min_match_ratio", registration.min_match_ratio, 0.0, 1.0);
+  read.finish();
 }
 
 void readShapeMatching(ParamReader& read, ShapeMatchingConfig& shape) {
@@ -265,10 +307,36 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
 
   ObjectConfig& object = params.object;
   object.kind = objectKind(read, params, dynamic, mode);
+  readModel(read, params);
   object.shape.mode = object.kind == ObjectKind::kKinematic ? DeformationMode::kRigid : mode.mode;
   readShapeMatching(read, object.shape);
   read.finish();
   return params;
+}
+
+/// The `objects` list: every entry, their names and topics each used once, and model_frame
+/// defaulting to the fixed frame.
+void readObjects(ParamReader& read, NodeConfig& config) {
+  const XmlRpcValue* objects = read.find("objects");
+  if (objects == nullptr) ParamReader::fail("objects", "is missing: list the objects to simulate");
+  if (objects->getType() != XmlRpcValue::TypeArray || objects->size() == 0) {
+    ParamReader::fail("objects", "must be a non-empty list of dictionaries");
+  }
+  std::set<std::string> names, topics;
+  for (int i = 0; i < objects->size(); ++i) {
+    const std::string path = "objects[" + std::to_string(i) + "]";
+    ObjectParams object = parseObject((*objects)[i], path);
+    if (!names.insert(object.object.name).second) {
+      ParamReader::fail(path + ".name", "= '" + object.object.name + "' is used by an earlier object");
+    }
+    if (!topics.insert(object.topic).second) {
+      ParamReader::fail(path + ".topic", "= '" + object.topic + "' is used by an earlier object");
+    }
+    if (!object.model_file.empty() && object.model_frame.empty()) {
+      object.model_frame = config.fixed_frame;
+    }
+    config.objects.push_back(std::move(object));
+  }
 }
 
 }  // namespace
@@ -304,29 +372,16 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
         tree_read.integer("exact_radius_points", scene.tree.exact_radius_points, 0, 1 << 20));
     tree_read.finish();
   }
+  if (const XmlRpcValue* registration = read.find("register")) {
+    readRegistration(*registration, scene.registration);
+  }
   if (const XmlRpcValue* markers = read.find("markers")) {
     ParamReader markers_read(*markers, "markers");
     config.markers_colliding_only = markers_read.flag("colliding_only", config.markers_colliding_only);
     markers_read.finish();
   }
 
-  const XmlRpcValue* objects = read.find("objects");
-  if (objects == nullptr) ParamReader::fail("objects", "is missing: list the objects to simulate");
-  if (objects->getType() != XmlRpcValue::TypeArray || objects->size() == 0) {
-    ParamReader::fail("objects", "must be a non-empty list of dictionaries");
-  }
-  std::set<std::string> names, topics;
-  for (int i = 0; i < objects->size(); ++i) {
-    const std::string path = "objects[" + std::to_string(i) + "]";
-    ObjectParams object = parseObject((*objects)[i], path);
-    if (!names.insert(object.object.name).second) {
-      ParamReader::fail(path + ".name", "= '" + object.object.name + "' is used by an earlier object");
-    }
-    if (!topics.insert(object.topic).second) {
-      ParamReader::fail(path + ".topic", "= '" + object.topic + "' is used by an earlier object");
-    }
-    config.objects.push_back(std::move(object));
-  }
+  readObjects(read, config);
   read.finish();
   return config;
 }

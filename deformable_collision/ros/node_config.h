@@ -14,13 +14,16 @@ namespace deformable_collision {
 
 /// What a later cloud of an object does once its first valid cloud has set the rest shape.
 enum class OnCloud {
-  kTrack,   ///< Observed positions of the same points (same count): registered each cloud.
-  kReset,   ///< A new rest shape.
-  kIgnore,  ///< Nothing.
+  kTrack,     ///< Observed positions of the same points (same count): registered each cloud.
+  kRegister,  ///< An unordered, partial view (a depth camera's): the model is fitted to it.
+  kReset,     ///< A new rest shape.
+  kIgnore,    ///< Nothing.
 };
 
-inline constexpr EnumNames<OnCloud, 3> kOnCloudNames{
-    {{OnCloud::kTrack, "track"}, {OnCloud::kReset, "reset"}, {OnCloud::kIgnore, "ignore"}}};
+inline constexpr EnumNames<OnCloud, 4> kOnCloudNames{{{OnCloud::kTrack, "track"},
+                                                      {OnCloud::kRegister, "register"},
+                                                      {OnCloud::kReset, "reset"},
+                                                      {OnCloud::kIgnore, "ignore"}}};
 
 /// The choice named `name` (kOnCloudNames); std::nullopt otherwise.
 inline std::optional<OnCloud> parseOnCloud(const std::string& name) {
@@ -33,8 +36,13 @@ struct ObjectParams {
   std::string topic;          ///< PointCloud2 input, resolved in the node's namespace.
   OnCloud on_cloud = OnCloud::kIgnore;
   std::string follow_frame;   ///< Kinematic objects: the tf frame they move with.
+  /// on_cloud register: the rest shape's file (PLY or PCD, metres), empty for the first
+  /// cloud's finite points; and the tf frame its coordinates are in (fixed_frame if unset).
+  std::string model_file;
+  std::string model_frame;
   /// Name, kind and shape matching. The kind follows from `dynamic`, `follow_frame` and
-  /// `on_cloud`: dynamic; kinematic (follows a frame); tracked (on_cloud track); or static.
+  /// `on_cloud`: dynamic; kinematic (follows a frame); tracked (on_cloud track or
+  /// register); or static.
   ObjectConfig object;
 };
 
@@ -52,7 +60,8 @@ struct NodeConfig {
   /// coordinate that far is a sensor's garbage, not an object.
   double max_coordinate_m = 1e4;
   bool markers_colliding_only = false;
-  SceneConfig scene;  ///< dt_s, gravity_mps2, level, contact_distance_m, friction, tree.
+  /// dt_s, gravity_mps2, level, contact_distance_m, friction, tree, register.
+  SceneConfig scene;
   std::vector<ObjectParams> objects;
 };
 

@@ -165,7 +165,25 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"DynamicTracked", [](XmlRpcValue& p) { p["objects"][1]["on_cloud"] = "track"; }, "objects[1].on_cloud = 'track' needs dynamic: false"},
         BadParamCase{"DynamicFollowing", [](XmlRpcValue& p) { p["objects"][1]["follow_frame"] = "link"; }, "objects[1].follow_frame"},
         BadParamCase{"DeformingFollower", [](XmlRpcValue& p) { p["objects"][2]["mode"] = "linear"; }, "objects[2].mode = 'linear'"},
-        BadParamCase{"DynamicAsString", [](XmlRpcValue& p) { p["objects"][1]["dynamic"] = "yes"; }, "objects[1].dynamic must be true or false"}),
+        BadParamCase{"DynamicAsString", [](XmlRpcValue& p) { p["objects"][1]["dynamic"] = "yes"; }, "objects[1].dynamic must be true or false"},
+        BadParamCase{"DynamicRegistered", [](XmlRpcValue& p) { p["objects"][1]["on_cloud"] = "register"; }, "objects[1].on_cloud = 'register' needs dynamic: false"},
+        BadParamCase{"RegisteredFollowing", [](XmlRpcValue& p) { p["objects"][2]["on_cloud"] = "register"; }, "objects[2].on_cloud = 'register' conflicts with follow_frame"},
+        BadParamCase{"ModelFileWhenTracking", [](XmlRpcValue& p) { p["objects"][3]["model_file"] = "hand.ply"; }, "objects[3].model_file is read only with on_cloud: register, not 'track'"},
+        BadParamCase{"ModelFileOfStatic", [](XmlRpcValue& p) { p["objects"][0]["model_file"] = "floor.pcd"; }, "objects[0].model_file is read only with on_cloud: register, not 'ignore'"},
+        BadParamCase{"ModelFileAsNumber", [](XmlRpcValue& p) { p["objects"][3]["on_cloud"] = "register"; p["objects"][3]["model_file"] = 3; }, "objects[3].model_file must be a string"},
+        BadParamCase{"ModelFrameWithoutFile", [](XmlRpcValue& p) { p["objects"][3]["on_cloud"] = "register"; p["objects"][3]["model_frame"] = "camera"; }, "objects[3].model_frame places model_file, which is not set"},
+        BadParamCase{"SlashedModelFrame", [](XmlRpcValue& p) { p["objects"][3]["on_cloud"] = "register"; p["objects"][3]["model_file"] = "hand.ply"; p["objects"][3]["model_frame"] = "/camera"; }, "objects[3].model_frame = '/camera' starts with '/'"},
+        BadParamCase{"RegisterNotADictionary", [](XmlRpcValue& p) { p["register"] = 5; }, "register must be a dictionary"},
+        BadParamCase{"ZeroIterations", [](XmlRpcValue& p) { p["register"]["iterations"] = 0; }, "register.iterations = 0 must be in [1, 1000]"},
+        BadParamCase{"IterationsNotInteger", [](XmlRpcValue& p) { p["register"]["iterations"] = 2.5; }, "register.iterations must be an integer"},
+        BadParamCase{"ZeroCorrespondence", [](XmlRpcValue& p) { p["register"]["max_correspondence_m"] = 0.0; }, "register.max_correspondence_m = 0 must be in (0, 1000]"},
+        BadParamCase{"NegativeCorrespondence", [](XmlRpcValue& p) { p["register"]["max_correspondence_m"] = -0.01; }, "register.max_correspondence_m = -0.01"},
+        BadParamCase{"InfiniteCorrespondence", [](XmlRpcValue& p) { p["register"]["max_correspondence_m"] = std::numeric_limits<double>::infinity(); }, "register.max_correspondence_m = inf"},
+        BadParamCase{"ZeroCloudPoints", [](XmlRpcValue& p) { p["register"]["max_cloud_points"] = 0; }, "register.max_cloud_points = 0 must be in [1, "},
+        BadParamCase{"ZeroModelPoints", [](XmlRpcValue& p) { p["register"]["max_model_points"] = 0; }, "register.max_model_points = 0 must be in [1, "},
+        BadParamCase{"NegativeMatchRatio", [](XmlRpcValue& p) { p["register"]["min_match_ratio"] = -0.1; }, "register.min_match_ratio = -0.1 must be in [0, 1]"},
+        BadParamCase{"MatchRatioAboveOne", [](XmlRpcValue& p) { p["register"]["min_match_ratio"] = 1.5; }, "register.min_match_ratio = 1.5 must be in [0, 1]"},
+        BadParamCase{"MisspeltRegister", [](XmlRpcValue& p) { p["register"]["iteration"] = 3; }, "register.iteration is not a known parameter"}),
     [](const auto& info) { return info.param.name; });
 
 /// A copy of a dictionary without `key` (XmlRpcValue cannot erase a member).
@@ -273,8 +291,59 @@ TEST(NodeConfig, CoordinateBoundTakesItsRangeEndsAndAnInteger) {
   }
 }
 
+TEST(NodeConfig, RegisteredObjectsAreTrackedWithTheirModelAndTheRegisterBlock) {
+  XmlRpcValue params = validParams();
+  params["objects"][3]["on_cloud"] = "register";
+  params["objects"][3]["model_file"] = "/models/hand.ply";
+  params["objects"][4] = object("sponge", "/camera/points");
+  params["objects"][4]["dynamic"] = false;
+  params["objects"][4]["on_cloud"] = "register";
+  params["objects"][4]["model_file"] = "sponge.pcd";
+  params["objects"][4]["model_frame"] = "table";
+  params["objects"][5] = object("cloth", "/camera/cloth");
+  params["objects"][5]["dynamic"] = false;
+  params["objects"][5]["on_cloud"] = "register";
+  params["register"]["iterations"] = 7;
+  params["register"]["max_correspondence_m"] = 0.02;
+  params["register"]["max_cloud_points"] = 1500;
+  params["register"]["max_model_points"] = 4000;
+  params["register"]["min_match_ratio"] = 1;
+  const NodeConfig config = parseWithoutWarnings(params);
+  ASSERT_EQ(config.objects.size(), 6u);
+  for (std::size_t i = 3; i < 6; ++i) {
+    EXPECT_EQ(config.objects[i].on_cloud, OnCloud::kRegister) << i;
+    EXPECT_EQ(config.objects[i].object.kind, ObjectKind::kTracked) << i;
+  }
+  EXPECT_EQ(config.objects[3].model_file, "/models/hand.ply");
+  EXPECT_EQ(config.objects[3].model_frame, "odom");  // fixed_frame when left out
+  EXPECT_EQ(config.objects[4].model_file, "sponge.pcd");
+  EXPECT_EQ(config.objects[4].model_frame, "table");
+  EXPECT_EQ(config.objects[5].model_file, "");  // the first cloud's finite points
+  EXPECT_EQ(config.objects[5].model_frame, "");
+  const RegistrationConfig& registration = config.scene.registration;
+  EXPECT_EQ(registration.iterations, 7);
+  EXPECT_DOUBLE_EQ(registration.max_correspondence_m, 0.02);
+  EXPECT_EQ(registration.max_cloud_points, 1500u);
+  EXPECT_EQ(registration.max_model_points, 4000u);
+  EXPECT_DOUBLE_EQ(registration.min_match_ratio, 1.0);
+}
+
+TEST(NodeConfig, RegisterBlockDefaultsAreTheCores) {
+  XmlRpcValue params = validParams();
+  params["register"]["min_match_ratio"] = 0;
+  const RegistrationConfig read = parseWithoutWarnings(params).scene.registration;
+  const RegistrationConfig core;
+  EXPECT_EQ(read.iterations, core.iterations);
+  EXPECT_EQ(read.max_correspondence_m, core.max_correspondence_m);
+  EXPECT_EQ(read.max_cloud_points, core.max_cloud_points);
+  EXPECT_EQ(read.max_model_points, core.max_model_points);
+  EXPECT_EQ(read.min_match_ratio, 0.0);
+  const RegistrationConfig absent = parseWithoutWarnings(validParams()).scene.registration;
+  EXPECT_EQ(absent.min_match_ratio, core.min_match_ratio);
+}
+
 TEST(NodeConfig, OnCloudNamesRoundTrip) {
-  for (const auto value : {OnCloud::kTrack, OnCloud::kReset, OnCloud::kIgnore}) {
+  for (const auto value : {OnCloud::kTrack, OnCloud::kRegister, OnCloud::kReset, OnCloud::kIgnore}) {
     EXPECT_EQ(parseOnCloud(toString(value)), value);
   }
   EXPECT_FALSE(parseOnCloud("Track"));
