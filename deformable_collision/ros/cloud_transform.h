@@ -1,10 +1,13 @@
 #pragma once
 
-#include <geometry_msgs/Transform.h>
+#include <Eigen/Geometry>
+#include <geometry_msgs/TransformStamped.h>
 #include <ros/time.h>
 #include <tf2/buffer_core.h>
 
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace deformable_collision {
 
@@ -27,5 +30,21 @@ struct CloudTransformLookup {
 CloudTransformLookup lookUpCloudTransform(const tf2::BufferCore& buffer,
                                           const std::string& target_frame,
                                           const std::string& source_frame, const ros::Time& stamp);
+
+/// The transform as an isometry; std::nullopt unless it is finite with a unit-length
+/// (after normalisation) rotation.
+std::optional<Eigen::Isometry3d> toIsometry(const geometry_msgs::Transform& transform);
+
+/// `pose` as tf's transform from `parent` to `child` at `stamp`.
+geometry_msgs::TransformStamped toTransformStamped(const Eigen::Isometry3d& pose,
+                                                  const ros::Time& stamp,
+                                                  const std::string& parent,
+                                                  const std::string& child);
+
+/// Why a point lies implausibly far from the origin of `frame`: the first coordinate of
+/// `points` beyond `bound_m` in magnitude, or empty if none is. Unobserved points (NaN in
+/// every coordinate, a tracked cloud's holes) have no coordinate to check.
+std::string farCoordinateProblem(const std::vector<Eigen::Vector3d>& points, double bound_m,
+                                 const std::string& frame);
 
 }  // namespace deformable_collision

@@ -4,8 +4,6 @@
 #include <boost/make_shared.hpp>
 
 #include <algorithm>
-#include <cmath>
-#include <sstream>
 
 #include "deformable_collision/core/point_spacing.h"
 #include "deformable_collision/ros/cloud_transform.h"
@@ -36,39 +34,6 @@ NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   return config;
 }
 
-/// The transform as an isometry; std::nullopt unless it is finite with a unit-length
-/// (after normalisation) rotation.
-std::optional<Eigen::Isometry3d> toIsometry(const geometry_msgs::Transform& transform) {
-  const Eigen::Quaterniond rotation(transform.rotation.w, transform.rotation.x,
-                                    transform.rotation.y, transform.rotation.z);
-  const Eigen::Vector3d translation(transform.translation.x, transform.translation.y,
-                                    transform.translation.z);
-  const double norm = rotation.norm();
-  if (!translation.allFinite() || !std::isfinite(norm) || norm < 1e-6) return std::nullopt;
-  Eigen::Isometry3d isometry = Eigen::Isometry3d::Identity();
-  isometry.linear() = rotation.normalized().toRotationMatrix();
-  isometry.translation() = translation;
-  return isometry;
-}
-
-/// Why a point lies implausibly far from the origin of `frame`: the first coordinate of
-/// `points` beyond `bound_m` in magnitude, or empty if none is. Unobserved points (NaN in
-/// every coordinate, a tracked cloud's holes) have no coordinate to check.
-std::string farCoordinateProblem(const std::vector<Eigen::Vector3d>& points, double bound_m,
-                                 const std::string& frame) {
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (points[i].array().isNaN().all()) continue;
-    for (int axis = 0; axis < 3; ++axis) {
-      if (std::abs(points[i][axis]) <= bound_m) continue;
-      std::ostringstream problem;
-      problem << "point " << i << " has " << "xyz"[axis] << " = " << points[i][axis] << " m in '"
-              << frame << "', beyond max_coordinate_m = " << bound_m;
-      return problem.str();
-    }
-  }
-  return "";
-}
-
 double millisecondsBetween(std::chrono::steady_clock::time_point from,
                            std::chrono::steady_clock::time_point to) {
   return std::chrono::duration<double, std::milli>(to - from).count();
@@ -88,9 +53,10 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
   hierarchy_publisher_ = private_handle_.advertise<visualization_msgs::MarkerArray>("hierarchy", 1);
   stats_publisher_ = private_handle_.advertise<Stats>("stats", 10);
   slots_.resize(config_.objects.size());
+  for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
+  loadModels();
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     ObjectSlot& slot = slots_[i];
-    slot.params = config_.objects[i];
     named_objects_.push_back({slot.params.object.name, std::nullopt});
     slot.deformed = private_handle_.advertise<sensor_msgs::PointCloud2>(
         "deformed/" + slot.params.object.name, 1);
@@ -214,7 +180,9 @@ CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
       readCloudPoints(cloud, tracked ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
                       config_.max_points_per_object, cloud_points_);
   if (!read.ok()) return read;
-  if (cloud_points_.empty()) {
+  // A registered object's view may miss it: the registration holds the model and says so.
+  const bool registered = slot.params.on_cloud == OnCloud::kRegister && slot.index;
+  if (cloud_points_.empty() && !registered) {
     read.error = "the cloud is empty";
   } else if (tracked && slot.index && cloud_points_.size() != slot.tracked_cloud_size) {
     read.error = "it has " + std::to_string(cloud_points_.size()) + " points, the first had " +
@@ -233,6 +201,7 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     const sensor_msgs::PointCloud2& cloud, std::size_t index, Clock::time_point arrival,
     bool last_try) {
   ObjectSlot& slot = slots_[index];
+  if (const std::optional<CloudOutcome> waiting = awaitModel(slot, last_try)) return *waiting;
   const bool first = !slot.index;
   if (!first && slot.params.on_cloud == OnCloud::kIgnore) return CloudOutcome::kApplied;
 
@@ -303,6 +272,8 @@ void DeformableCollisionNode::applyCloud(ObjectSlot& slot, std::vector<Eigen::Ve
     warnIfPorous(slot.params.object.name, points);
   } else if (slot.params.on_cloud == OnCloud::kReset) {
     scene_.resetRestShape(*slot.index, points);
+  } else if (slot.params.on_cloud == OnCloud::kRegister) {
+    registerCloud(slot, points);
   } else {
     scene_.observe(*slot.index, points);
   }
@@ -380,6 +351,7 @@ void DeformableCollisionNode::followFrames() {
 
 void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
   try {
+    placeModels();
     retryAwaitingClouds();
     runCycle();
   } catch (const std::exception& e) {
@@ -471,6 +443,7 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.node_pairs_tested = static_cast<std::uint32_t>(cycle.node_pairs_tested);
   stats.point_tests = static_cast<std::uint32_t>(cycle.point_tests);
   stats.contacts = static_cast<std::uint32_t>(cycle.contacts);
+  fillRegistrationStats(stats);
   stats_publisher_.publish(stats);
 }
 

@@ -58,6 +58,13 @@ class DeformableCollisionNode {
     std::deque<AwaitingCloud> awaiting_transform;
     std::optional<Clock::time_point> last_report;  ///< Of a dropped cloud.
     std::size_t drops_unreported = 0;
+    /// on_cloud register: model_file's points in model_frame until tf places them, the last
+    /// cloud's registration, and the clouds held since start and since the last report.
+    std::vector<Eigen::Vector3d> model_points;
+    RegistrationReport registration;
+    std::uint64_t clouds_held = 0;
+    std::optional<Clock::time_point> last_held_report;
+    std::size_t held_unreported = 0;
   };
 
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
@@ -95,6 +102,21 @@ class DeformableCollisionNode {
   TransformOutcome transformPoints(const ObjectSlot& slot,
                                   const sensor_msgs::PointCloud2& cloud, bool last_try,
                                   std::vector<Eigen::Vector3d>& points, std::string& problem);
+  /// Reads every model_file, so that a bad one stops the node at start, naming the object.
+  /// @throw std::invalid_argument
+  void loadModels();
+  /// Creates the object of a slot from its model file at model_frame's latest pose, once tf
+  /// has it; whether the object exists.
+  bool placeModel(ObjectSlot& slot);
+  void placeModels();
+  /// A cloud of an object whose model waits for model_frame's pose waits with it, or on its
+  /// last try is dropped; std::nullopt when the model is placed or there is none.
+  std::optional<CloudOutcome> awaitModel(ObjectSlot& slot, bool last_try);
+  /// Fits a registered object to a cloud in fixed_frame; keeps the report for ~stats.
+  void registerCloud(ObjectSlot& slot, const std::vector<Eigen::Vector3d>& cloud_m);
+  /// Says that a registration held the model, at most once per 5 s per object.
+  void reportHeld(ObjectSlot& slot);
+  void fillRegistrationStats(Stats& stats) const;
   void followFrames();
   void onTimer(const ros::TimerEvent& event);
   /// When the steps of one cycle ended, for ~stats.
