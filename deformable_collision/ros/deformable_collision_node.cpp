@@ -300,6 +300,7 @@ DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoin
     const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud, bool last_try,
     std::vector<Eigen::Vector3d>& points, std::string& problem) {
   const std::string& target_frame = targetFrame(slot);
+  cloud_viewpoint_.reset();
   if (cloud.header.frame_id.empty()) {
     problem = "header.frame_id is empty";
     return TransformOutcome::kRefused;
@@ -326,6 +327,7 @@ DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoin
     return TransformOutcome::kRefused;
   }
   for (auto& p : points) p = *transform * p;
+  cloud_viewpoint_ = transform->translation();
   return TransformOutcome::kDone;
 }
 

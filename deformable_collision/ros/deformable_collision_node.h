@@ -156,6 +156,9 @@ class DeformableCollisionNode {
   HierarchyMarkers markers_;
   std::vector<Eigen::Vector3d> cloud_points_;
   std::vector<Eigen::Vector3d> tracked_points_;
+  /// The origin of the last cloud's frame in the target frame, the sensor's position, when
+  /// the cloud came in a frame of its own (a camera's); unknown for a cloud in the target frame.
+  std::optional<Eigen::Vector3d> cloud_viewpoint_;
   std::vector<SceneContact> query_contacts_;
   /// The services' view of slots_: names point into slots_[i].params, which never moves.
   std::vector<NamedObject> named_objects_;

@@ -78,7 +78,7 @@ void DeformableCollisionNode::placeModels() {
 
 void DeformableCollisionNode::registerCloud(ObjectSlot& slot,
                                             const std::vector<Eigen::Vector3d>& cloud_m) {
-  slot.registration = scene_.registerCloud(*slot.index, cloud_m);
+  slot.registration = scene_.registerCloud(*slot.index, cloud_m, cloud_viewpoint_);
   if (slot.registration.held) reportHeld(slot);
 }
 
