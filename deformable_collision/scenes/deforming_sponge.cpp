@@ -169,7 +169,7 @@ Eigen::Vector3d DeformingSponge::jawHalfExtents() const {
   const double bulged_height =
       config_.size_m.z() * (1.0 + config_.bulge_ratio * config_.max_squeeze_ratio);
   return Eigen::Vector3d(0.5 * config_.jaw_length_m, 0.5 * config_.jaw_thickness_m,
-                         0.5 * bulged_height + 0.005);
+                         0.5 * bulged_height + 0.01);
 }
 
 std::vector<Eigen::Vector3d> DeformingSponge::jawSurfacePoints(double spacing_m) const {

@@ -40,6 +40,17 @@ double validatedFocalLengthPx(const VirtualCameraConfig& c) {
 
 }  // namespace
 
+Eigen::Isometry3d cameraLookingAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d forward = (target - eye).normalized();
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear().col(0) = right;
+  pose.linear().col(1) = forward.cross(right);
+  pose.linear().col(2) = forward;
+  pose.translation() = eye;
+  return pose;
+}
+
 VirtualCamera::VirtualCamera(const VirtualCameraConfig& config)
     : config_(config),
       focal_px_(validatedFocalLengthPx(config)),

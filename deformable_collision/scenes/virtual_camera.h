@@ -20,6 +20,10 @@ struct VirtualCameraConfig {
   std::uint64_t seed = 1;           ///< Noise and dropout: the same seed, the same clouds.
 };
 
+/// The optical frame of a camera at `eye` looking at `target`, its image's x axis level
+/// (perpendicular to world z, which must not be the viewing direction).
+Eigen::Isometry3d cameraLookingAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target);
+
 /// Renders surface samples, each a small disk ("splat"), into an organized cloud with a
 /// z-buffer, so that only the surfaces nearest the camera are seen. The camera frame is the
 /// optical one: z forward, x right, y down. A frame is rendered in three calls:

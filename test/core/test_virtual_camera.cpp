@@ -40,18 +40,6 @@ BoxSurface boxSurface(const Eigen::Vector3d& low, const Eigen::Vector3d& high, d
   return box;
 }
 
-/// The optical frame of a camera at `eye` looking at `target`, image down along -world z.
-Eigen::Isometry3d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-  const Eigen::Vector3d forward = (target - eye).normalized();
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear().col(0) = right;
-  pose.linear().col(1) = forward.cross(right);
-  pose.linear().col(2) = forward;
-  pose.translation() = eye;
-  return pose;
-}
-
 struct FrontFaceCase {
   double noise_m;
   double dropout_ratio;
@@ -134,7 +122,7 @@ TEST_P(CameraSphere, SeesAboutTheNearHalf) {
   const double spacing_m = std::sqrt(4 * M_PI * radius_m * radius_m / points.size());
   const Eigen::Vector3d eye = center + GetParam().eye;
   VirtualCamera camera(VirtualCameraConfig{});
-  camera.beginFrame(lookAt(eye, center));
+  camera.beginFrame(cameraLookingAt(eye, center));
   const int label = camera.addSurface(points, normals, 2.0 * spacing_m);
   camera.finishFrame();
 
