@@ -1,10 +1,18 @@
 // Watches a running deformable_collision node for a fixed time, asks it for contacts over
 // its service like any client would, prints a report and exits (which ends `make demo`).
+// Where the scene publishes ground_truth/<object> (scene camera_gripper), it also scores the
+// node's ~deformed/<object> against it.
 #include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <functional>
+#include <list>
 #include <string>
+#include <vector>
 
 #include "deformable_collision/ContactArray.h"
 #include "deformable_collision/GetContacts.h"
@@ -46,10 +54,93 @@ struct StatsRecord {
   }
 };
 
-/// Spins until `duration_s` after the first cycle with objects; false if none came within
-/// `startup_timeout_s` (said on stderr) or ROS shut down.
+/// The registration error of one object: its ~deformed points against the scene's
+/// ground_truth points of the same index, on the seen and the hidden side. Each ground truth
+/// is scored against the node's last model before the next ground truth: by then the node
+/// has registered the cloud taken with it.
+class GroundTruthScore {
+ public:
+  explicit GroundTruthScore(std::string object) : object_(std::move(object)) {}
+
+  void addGroundTruth(const sensor_msgs::PointCloud2::ConstPtr& truth) {
+    if (pending_truth_ && latest_model_ &&
+        latest_model_->header.stamp >= pending_truth_->header.stamp &&
+        latest_model_->header.stamp < truth->header.stamp) {
+      score(*pending_truth_, *latest_model_);
+    }
+    pending_truth_ = truth;
+  }
+  void addModel(const sensor_msgs::PointCloud2::ConstPtr& model) { latest_model_ = model; }
+
+  void print() const {
+    std::printf("registration of %s against ground_truth/%s over %zu clouds (%zu unmatched):\n",
+                object_.c_str(), object_.c_str(), seen_mean_.count, unmatched_);
+    std::printf("  seen side: mean %.2f mm (worst cloud %.2f mm), largest %.2f mm, %.0f points\n",
+                1e3 * seen_mean_.mean(), 1e3 * seen_mean_.max, 1e3 * seen_max_.max,
+                seen_count_.mean());
+    std::printf("  hidden side: mean %.2f mm (worst cloud %.2f mm), largest %.2f mm, %.0f points\n",
+                1e3 * hidden_mean_.mean(), 1e3 * hidden_mean_.max, 1e3 * hidden_max_.max,
+                hidden_count_.mean());
+  }
+
+ private:
+  void score(const sensor_msgs::PointCloud2& truth, const sensor_msgs::PointCloud2& model) {
+    const std::size_t count = std::size_t(truth.width) * truth.height;
+    if (truth.header.frame_id != model.header.frame_id ||
+        std::size_t(model.width) * model.height != count) {
+      ++unmatched_;
+      return;
+    }
+    sensor_msgs::PointCloud2ConstIterator<float> truth_xyz(truth, "x"), visible(truth, "visible"),
+        model_xyz(model, "x");
+    Summary seen, hidden;
+    for (std::size_t i = 0; i < count; ++i, ++truth_xyz, ++visible, ++model_xyz) {
+      const double error = std::sqrt(std::pow(truth_xyz[0] - model_xyz[0], 2) +
+                                     std::pow(truth_xyz[1] - model_xyz[1], 2) +
+                                     std::pow(truth_xyz[2] - model_xyz[2], 2));
+      (*visible > 0.5f ? seen : hidden).add(error);
+    }
+    seen_mean_.add(seen.mean());
+    seen_max_.add(seen.max);
+    seen_count_.add(seen.count);
+    hidden_mean_.add(hidden.mean());
+    hidden_max_.add(hidden.max);
+    hidden_count_.add(hidden.count);
+  }
+
+  std::string object_;
+  sensor_msgs::PointCloud2::ConstPtr pending_truth_, latest_model_;
+  Summary seen_mean_, seen_max_, seen_count_, hidden_mean_, hidden_max_, hidden_count_;
+  std::size_t unmatched_ = 0;
+};
+
+/// Subscribes, for every ground_truth/<object> topic the master knows, to it and to the
+/// node's ~deformed/<object>.
+void scoreGroundTruths(ros::NodeHandle& node_handle, std::list<GroundTruthScore>& scores,
+                       std::vector<ros::Subscriber>& subscribers) {
+  ros::master::V_TopicInfo topics;
+  ros::master::getTopics(topics);
+  const std::string marker = "ground_truth/";
+  for (const auto& topic : topics) {
+    const std::size_t at = topic.name.rfind(marker);
+    if (at == std::string::npos || (at > 0 && topic.name[at - 1] != '/')) continue;
+    const std::string object = topic.name.substr(at + marker.size());
+    GroundTruthScore& score = scores.emplace_back(object);
+    using Callback = boost::function<void(const sensor_msgs::PointCloud2::ConstPtr&)>;
+    subscribers.push_back(node_handle.subscribe<sensor_msgs::PointCloud2>(
+        topic.name, 10, Callback([&score](const auto& truth) { score.addGroundTruth(truth); })));
+    subscribers.push_back(node_handle.subscribe<sensor_msgs::PointCloud2>(
+        "deformed/" + object, 10,
+        Callback([&score](const auto& model) { score.addModel(model); })));
+  }
+}
+
+/// Spins until `duration_s` after the first cycle with objects, calling `on_first_cycle`
+/// when that comes; false if none came within `startup_timeout_s` (said on stderr) or ROS
+/// shut down.
 bool watch(const StatsRecord& record, const std::string& node, double duration_s,
-           double startup_timeout_s) {
+           double startup_timeout_s, const std::function<void()>& on_first_cycle) {
+  bool first_cycle_seen = false;
   const ros::WallTime started = ros::WallTime::now();
   ros::WallRate poll(100.0);
   while (ros::ok()) {
@@ -59,6 +150,10 @@ bool watch(const StatsRecord& record, const std::string& node, double duration_s
       std::fprintf(stderr, "demo_report: no cycle with objects from %s/stats within %.0f s\n",
                    node.c_str(), startup_timeout_s);
       return false;
+    }
+    if (record.cycles > 0 && !first_cycle_seen) {
+      first_cycle_seen = true;
+      on_first_cycle();
     }
     if (record.cycles > 0 && (now - record.first_cycle).toSec() >= duration_s) return true;
     poll.sleep();
@@ -111,13 +206,19 @@ int main(int argc, char** argv) {
       "contacts", 1,
       boost::function<void(const deformable_collision::ContactArray::ConstPtr&)>(
           [](const deformable_collision::ContactArray::ConstPtr&) {}));
-  if (!watch(record, node, duration_s, startup_timeout_s)) return 1;
+  std::list<GroundTruthScore> scores;  // a list: the subscribers hold references
+  std::vector<ros::Subscriber> score_subscribers;
+  if (!watch(record, node, duration_s, startup_timeout_s,
+             [&] { scoreGroundTruths(node_handle, scores, score_subscribers); })) {
+    return 1;
+  }
 
   deformable_collision::GetContacts query;
   query.request.level = deformable_collision::GetContacts::Request::RUNNING;
   const bool answered =
       ros::service::call(node + "/get_contacts", query) && query.response.success;
   printReport(record, duration_s);
+  for (const GroundTruthScore& score : scores) score.print();
   if (answered) {
     std::printf("%s/get_contacts: %s\n", node.c_str(), query.response.message.c_str());
   } else {

@@ -1,6 +1,7 @@
 // Publishes a built-in scene (deformable_collision/scenes/demo_scenes.h) as one PointCloud2
 // per object on <object>/points, and the frames of its kinematic objects on tf: the input
-// of the demo and of the node's tests. With ~simulate the scene is stepped and every cloud
+// of the demo and of the node's tests. Scene camera_gripper is a depth camera's view
+// instead (camera_gripper_publisher.h). With ~simulate the scene is stepped and every cloud
 // shows the current points (for objects the node tracks); otherwise the points as they are
 // after ~settle_s seconds of simulation (0: the rest shapes).
 #include <ros/ros.h>
@@ -13,29 +14,15 @@
 #include <string>
 #include <vector>
 
-#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
+#include "deformable_collision/scenes/demo_scenes.h"
+#include "deformable_collision/tools/camera_gripper_publisher.h"
+#include "deformable_collision/tools/transform_message.h"
 
 namespace {
 
 using deformable_collision::DemoScene;
-
-geometry_msgs::TransformStamped toTransform(const Eigen::Isometry3d& pose, const ros::Time& stamp,
-                                            const std::string& parent, const std::string& child) {
-  geometry_msgs::TransformStamped transform;
-  transform.header.stamp = stamp;
-  transform.header.frame_id = parent;
-  transform.child_frame_id = child;
-  transform.transform.translation.x = pose.translation().x();
-  transform.transform.translation.y = pose.translation().y();
-  transform.transform.translation.z = pose.translation().z();
-  const Eigen::Quaterniond rotation(pose.linear());
-  transform.transform.rotation.x = rotation.x();
-  transform.transform.rotation.y = rotation.y();
-  transform.transform.rotation.z = rotation.z();
-  transform.transform.rotation.w = rotation.w();
-  return transform;
-}
+using deformable_collision::toTransform;
 
 struct PublisherParams {
   std::string scene_name;
@@ -59,8 +46,9 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
 
   const auto scene_kind = deformable_collision::parseDemoScene(params.scene_name);
   if (!scene_kind) {
-    ROS_FATAL("~scene = '%s' must be %s", params.scene_name.c_str(),
-              deformable_collision::enumNameList(deformable_collision::kDemoSceneNames).c_str());
+    ROS_FATAL("~scene = '%s' must be %s or %s", params.scene_name.c_str(),
+              deformable_collision::enumNameList(deformable_collision::kDemoSceneNames).c_str(),
+              deformable_collision::kCameraGripperSceneName);
     return std::nullopt;
   }
   params.scene_kind = *scene_kind;
@@ -103,7 +91,12 @@ void publishScene(const PublisherParams& params, const deformable_collision::Sce
 int main(int argc, char** argv) {
   ros::init(argc, argv, "scene_publisher");
   ros::NodeHandle node_handle;
-  const std::optional<PublisherParams> params = readParams(ros::NodeHandle("~"));
+  const ros::NodeHandle private_handle("~");
+  const std::string scene_name = private_handle.param<std::string>("scene", "");
+  if (scene_name == deformable_collision::kCameraGripperSceneName) {
+    return deformable_collision::runCameraGripperPublisher(node_handle, private_handle);
+  }
+  const std::optional<PublisherParams> params = readParams(private_handle);
   if (!params) return 1;
   deformable_collision::SceneConfig config;
   config.dt_s = 1.0 / params->rate_hz;
