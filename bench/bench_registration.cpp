@@ -1,0 +1,128 @@
+// The registration benchmark (issue: real depth cameras): a sponge of N model points squeezed,
+// bent and twisted over F frames, seen at 30 Hz by the camera_gripper scene's virtual depth
+// camera (320 x 240, 1 mm noise, dropout, jaws inside the crop as outliers). Per cloud: the
+// registration's time and the model's error against the ground truth, on the side the camera
+// sees and on the hidden side.
+//
+//   bench_registration [--points N] [--frames F] [--mode rigid|linear|quadratic]
+//                      [--clusters K] [--iterations I] [--cloud-points C] [--model-points M]
+//                      [--static 1]
+//
+// --static 1 leaves the rest model in place (no registration): the baseline a registration
+// must beat.
+// Prints one line per setting: the means over the frames of the seen and hidden error (mean
+// over points), the largest error over all frames, and the registration time per cloud.
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "deformable_collision/core/cloud_registration.h"
+#include "deformable_collision/core/shape_matching.h"
+#include "deformable_collision/scenes/camera_gripper_scene.h"
+
+namespace {
+
+using deformable_collision::CameraGripperConfig;
+using deformable_collision::CameraGripperScene;
+using deformable_collision::CloudRegistration;
+using deformable_collision::RegistrationConfig;
+using deformable_collision::ShapeMatchingBody;
+using deformable_collision::ShapeMatchingConfig;
+
+struct Settings {
+  std::size_t points = 20000;
+  int frames = 100;
+  std::string mode = "linear";
+  int clusters = 6;
+  bool leave_in_place = false;
+  RegistrationConfig registration;
+};
+
+struct Errors {
+  double seen_mean_m = 0.0, hidden_mean_m = 0.0;  ///< Mean over frames of the mean over points.
+  double seen_max_m = 0.0, hidden_max_m = 0.0;    ///< Largest over frames and points.
+  double registration_ms = 0.0;                   ///< Mean per cloud.
+  double worst_registration_ms = 0.0;
+  std::size_t held = 0;
+};
+
+Settings parse(int argc, char** argv) {
+  Settings s;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string key = argv[i];
+    const char* value = argv[i + 1];
+    if (key == "--points") s.points = std::strtoul(value, nullptr, 10);
+    else if (key == "--frames") s.frames = std::atoi(value);
+    else if (key == "--mode") s.mode = value;
+    else if (key == "--clusters") s.clusters = std::atoi(value);
+    else if (key == "--iterations") s.registration.iterations = std::atoi(value);
+    else if (key == "--cloud-points") s.registration.max_cloud_points = std::strtoul(value, nullptr, 10);
+    else if (key == "--model-points") s.registration.max_model_points = std::strtoul(value, nullptr, 10);
+    else if (key == "--static") s.leave_in_place = std::atoi(value) != 0;
+    else {
+      std::fprintf(stderr, "unknown option %s\n", key.c_str());
+      std::exit(2);
+    }
+  }
+  return s;
+}
+
+Errors run(const Settings& s) {
+  CameraGripperConfig scene_config;
+  scene_config.sponge.points = s.points;
+  constexpr double kRateHz = 30.0;
+  // One squeeze-bend-release over the run: the largest deformation at its middle.
+  scene_config.cycle_s = s.frames / kRateHz;
+  CameraGripperScene scene(scene_config);
+  ShapeMatchingConfig shape;
+  shape.mode = *deformable_collision::parseDeformationMode(s.mode);
+  shape.clusters = s.clusters;
+  ShapeMatchingBody body(scene.restModel(), shape);
+  CloudRegistration registration(s.registration);
+  Errors errors;
+  std::vector<Eigen::Vector3d> cloud;
+  for (int frame = 1; frame <= s.frames; ++frame) {
+    const double time_s = frame / kRateHz;
+    scene.render(time_s);
+    const Eigen::Isometry3d camera = scene.cameraPose(time_s);
+    cloud.clear();
+    for (const auto& p : scene.cloud()) cloud.push_back(camera * p.cast<double>());
+    const auto start = std::chrono::steady_clock::now();
+    if (!s.leave_in_place) errors.held += registration.registerCloud(body, cloud, camera.translation()).held ? 1 : 0;
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    errors.registration_ms += ms / s.frames;
+    errors.worst_registration_ms = std::max(errors.worst_registration_ms, ms);
+    double seen_sum = 0.0, hidden_sum = 0.0;
+    std::size_t seen = 0, hidden = 0;
+    for (std::size_t i = 0; i < body.pointCount(); ++i) {
+      const double e = (body.positions()[i] - scene.groundTruth()[i]).norm();
+      if (scene.groundTruthVisible()[i]) {
+        seen_sum += e, ++seen, errors.seen_max_m = std::max(errors.seen_max_m, e);
+      } else {
+        hidden_sum += e, ++hidden, errors.hidden_max_m = std::max(errors.hidden_max_m, e);
+      }
+    }
+    errors.seen_mean_m += (seen ? seen_sum / seen : 0.0) / s.frames;
+    errors.hidden_mean_m += (hidden ? hidden_sum / hidden : 0.0) / s.frames;
+  }
+  return errors;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Settings s = parse(argc, argv);
+  const Errors e = run(s);
+  std::printf("points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
+              "seen mean %.2f max %.2f mm | hidden mean %.2f max %.2f mm | registration %.2f ms (worst %.2f) | held %zu\n",
+              s.points, s.frames, s.mode.c_str(), s.clusters,
+              s.leave_in_place ? "static" : ("iterations " + std::to_string(s.registration.iterations)).c_str(),
+              s.registration.max_cloud_points, s.registration.max_model_points, 1e3 * e.seen_mean_m,
+              1e3 * e.seen_max_m, 1e3 * e.hidden_mean_m, 1e3 * e.hidden_max_m, e.registration_ms,
+              e.worst_registration_ms, e.held);
+  return 0;
+}
