@@ -88,6 +88,11 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
 /// price of a round's fit going only part of the way. Chosen on bench_registration.
 constexpr double kPriorWeight = 0.3;
 
+/// The share of kPriorWeight that holds the object's rigid step (per match): enough to stop
+/// noise from sliding the model along a face seen edge-on, little enough to follow a box
+/// turning a degree and sliding 1.7 mm between clouds within the rounds of one cloud.
+constexpr double kRigidStepPriorShare = 0.1;
+
 /// Neighbours whose spread gives a matching point's surface normal.
 constexpr std::size_t kNormalNeighbours = 12;
 /// A neighbourhood is flat where it spreads this much less across than along: a face, not
@@ -382,16 +387,16 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidS
     const Eigen::Vector3d& normal = current_normals[m];
     addRow(positions[m] - center, normal, normal.dot(samples[j] - positions[m]));
   }
-  // The prior of the clusters' fits holds the step too: a direction the matches constrain
-  // weakly (a flat view slides along itself, a face seen edge-on) moves only as far as
-  // they outweigh it, instead of as far as their noise says.
+  // A share of the clusters' prior holds the step: a direction the matches constrain only
+  // weakly (a face seen edge-on) moves about as far as they outweigh it, not as far as their
+  // noise says, while a well-seen motion is followed within a round or two.
   double arm_squared = 0.0;
   for (std::size_t j = 0; j < samples.size(); ++j) {
     if (distance_of_sample[j] <= threshold) arm_squared += (positions[match_of_sample[j]] - center).squaredNorm();
   }
-  const double prior = kPriorWeight * static_cast<double>(used);
-  normal_matrix.diagonal().head<3>().array() += kPriorWeight * arm_squared + 1e-300;
-  normal_matrix.diagonal().tail<3>().array() += prior;
+  const double step_prior = kRigidStepPriorShare * kPriorWeight;
+  normal_matrix.diagonal().head<3>().array() += step_prior * arm_squared + 1e-300;
+  normal_matrix.diagonal().tail<3>().array() += step_prior * static_cast<double>(used);
   const Eigen::Matrix<double, 6, 1> motion = normal_matrix.ldlt().solve(right_side);
   step.center = center;
   step.translation = motion.tail<3>().allFinite() ? Eigen::Vector3d(motion.tail<3>()) : Eigen::Vector3d::Zero();

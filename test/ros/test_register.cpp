@@ -32,7 +32,7 @@ const std::string kManager = "/register_manager";
 const std::string kNode = "/register_node";
 /// The box's half extents: 8 x 5 x 3 cm, no two alike, so that every rotation shows.
 const Eigen::Vector3d kHalfExtents(0.04, 0.025, 0.015);
-constexpr int kFrames = 40;
+constexpr int kFrames = 30;
 /// Depth camera: 160 x 120 pixels, 2.9 mm per pixel at the box's 0.4 m.
 constexpr int kWidth = 160;
 constexpr int kHeight = 120;
@@ -81,9 +81,10 @@ Eigen::Isometry3d boxPose(int k) {
 }
 
 /// The camera's optical frame (z ahead, x right, y down) in the world at frame k: 0.4 m
-/// from the box's start, above it, circling it by 1.5 degrees a frame.
+/// from the box's start, above it, circling it by 1.5 degrees a frame from a corner's view
+/// (the top and two sides): a box seen on two faces alone cannot show a slide along both.
 Eigen::Isometry3d cameraPose(int k) {
-  const double azimuth = k * 1.5 * M_PI / 180.0;
+  const double azimuth = (45.0 + k * 1.5) * M_PI / 180.0;
   const Eigen::Vector3d target(0.0, 0.0, 0.05);
   const Eigen::Vector3d eye =
       target + 0.4 * Eigen::Vector3d(std::cos(azimuth) * 0.8, std::sin(azimuth) * 0.8, 0.6);
