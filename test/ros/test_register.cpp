@@ -41,8 +41,8 @@ constexpr double kNoiseM = 0.001;
 constexpr double kDropout = 0.05;
 /// Tolerances of the registered model against the box's true pose, every model point
 /// (seen and hidden side), after every frame.
-constexpr double kMeanErrorM = 0.003;
-constexpr double kMaxErrorM = 0.008;
+constexpr double kMeanErrorM = 0.001;
+constexpr double kMaxErrorM = 0.002;
 
 /// The box's surface every 4 mm, in its own frame: the model file's points.
 Points boxModel() {
