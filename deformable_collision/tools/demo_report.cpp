@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <functional>
 #include <list>
 #include <string>
@@ -63,14 +64,23 @@ class GroundTruthScore {
   explicit GroundTruthScore(std::string object) : object_(std::move(object)) {}
 
   void addGroundTruth(const sensor_msgs::PointCloud2::ConstPtr& truth) {
-    if (pending_truth_ && latest_model_ &&
-        latest_model_->header.stamp >= pending_truth_->header.stamp &&
-        latest_model_->header.stamp < truth->header.stamp) {
-      score(*pending_truth_, *latest_model_);
+    // A ground truth arrives a render's time after its stamp, when models newer than that
+    // stamp may have come already: the one to score is the newest stamped before it.
+    if (pending_truth_) {
+      const auto before_next = std::find_if(
+          models_.rbegin(), models_.rend(), [&](const sensor_msgs::PointCloud2::ConstPtr& model) {
+            return model->header.stamp < truth->header.stamp;
+          });
+      if (before_next != models_.rend() && (*before_next)->header.stamp >= pending_truth_->header.stamp) {
+        score(*pending_truth_, **before_next);
+      }
     }
     pending_truth_ = truth;
   }
-  void addModel(const sensor_msgs::PointCloud2::ConstPtr& model) { latest_model_ = model; }
+  void addModel(const sensor_msgs::PointCloud2::ConstPtr& model) {
+    models_.push_back(model);
+    if (models_.size() > kModelsKept) models_.pop_front();
+  }
 
   void print() const {
     std::printf("registration of %s against ground_truth/%s over %zu clouds (%zu unmatched):\n",
@@ -108,8 +118,12 @@ class GroundTruthScore {
     hidden_count_.add(hidden.count);
   }
 
+  /// Models at the node's rate that a ground truth at the camera's rate may have to reach
+  /// back over.
+  static constexpr std::size_t kModelsKept = 64;
   std::string object_;
-  sensor_msgs::PointCloud2::ConstPtr pending_truth_, latest_model_;
+  sensor_msgs::PointCloud2::ConstPtr pending_truth_;
+  std::deque<sensor_msgs::PointCloud2::ConstPtr> models_;
   Summary seen_mean_, seen_max_, seen_count_, hidden_mean_, hidden_max_, hidden_count_;
   std::size_t unmatched_ = 0;
 };
