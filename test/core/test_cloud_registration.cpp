@@ -292,6 +292,55 @@ TEST(SceneRegistration, TrackedObjectsOnly) {
   EXPECT_THROW(Scene{bad_registration}, std::invalid_argument);
 }
 
+// The hidden side is completed by the model: after the object moved, seen from one side
+// only, a probe touching the face the camera never sees is found at the finest level where
+// it touches, and one a contact distance farther off is not.
+TEST(SceneRegistration, FindsContactsOnTheHiddenSide) {
+  SceneConfig config;
+  config.contact_distance_m = 0.004;
+  Scene scene(config);
+  ObjectConfig sponge{"sponge", ObjectKind::kTracked, {}};
+  sponge.shape.mode = DeformationMode::kRigid;
+  const std::size_t sponge_index = scene.addObject(sponge, boxSurface(4000, 21).points);
+  constexpr int kClouds = 20;
+  const Eigen::Vector3d camera = 0.5 * kOneSide.normalized();
+  for (int frame = 1; frame <= kClouds; ++frame) {
+    ASSERT_FALSE(scene.registerCloud(sponge_index,
+                                     cloudOf(rigidMotion, static_cast<double>(frame) / kClouds, 6000,
+                                             kOneSide, 0.001, 0.05, 500 + frame),
+                                     camera)
+                     .held);
+  }
+  // Probes under the bottom face (-z, which the camera never sees), where it truly is.
+  const auto probeAt = [&](double gap_m) {
+    Points probe;
+    for (double x = -0.01; x <= 0.01; x += 0.002) {
+      for (double y = -0.01; y <= 0.01; y += 0.002) {
+        probe.push_back(rigidMotion(Eigen::Vector3d(x, y, -kHalfExtents.z() - gap_m), 1.0));
+      }
+    }
+    return probe;
+  };
+  const Eigen::Vector3d touch_point = rigidMotion(Eigen::Vector3d(0.0, 0.0, -kHalfExtents.z()), 1.0);
+  ObjectConfig touching{"touching_probe", ObjectKind::kKinematic, {}};
+  ObjectConfig apart{"probe_apart", ObjectKind::kKinematic, {}};
+  const std::size_t touching_index = scene.addObject(touching, probeAt(0.001));
+  const std::size_t apart_index = scene.addObject(apart, probeAt(0.001 + 2 * config.contact_distance_m));
+  scene.setPose(touching_index, Eigen::Isometry3d::Identity());
+  scene.setPose(apart_index, Eigen::Isometry3d::Identity());
+  std::vector<SceneContact> contacts;
+  scene.contactsAt(scene.maxLevel(), sponge_index, std::nullopt, contacts);
+  std::size_t with_touching = 0;
+  for (const SceneContact& c : contacts) {
+    const std::size_t other = c.object_a == sponge_index ? c.object_b : c.object_a;
+    EXPECT_NE(other, apart_index) << "a probe 9 mm below the hidden face touches it";
+    if (other != touching_index) continue;
+    ++with_touching;
+    EXPECT_LT((c.contact.position - touch_point).norm(), 0.016) << "contact far from the probe";
+  }
+  EXPECT_GT(with_touching, 0u) << "the probe touching the hidden face is not found";
+}
+
 TEST(RegistrationConfigTest, RefusesBadValuesByName) {
   const std::vector<std::pair<std::string, RegistrationConfig>> bad = {
       {"iterations", RegistrationConfig{0}},
