@@ -6,29 +6,38 @@
 //
 //   bench_registration [--points N] [--frames F] [--mode rigid|linear|quadratic]
 //                      [--clusters K] [--iterations I] [--cloud-points C] [--model-points M]
-//                      [--static 1]
+//                      [--method ours|pcl_icp|pcl_icp_clusters] [--static 1]
 //
+// --method: ours is CloudRegistration; pcl_icp is PCL's rigid ICP of the whole model, and
+// pcl_icp_clusters of each of the body's K clusters alone, on the same thinned clouds with
+// the same rounds and largest match distance (PclIcpRegistration); --model-points is ours
+// alone, PCL matches to every rest point of a part.
 // --static 1 leaves the rest model in place (no registration): the baseline a registration
 // must beat.
 // Prints one line per setting: the means over the frames of the seen and hidden error (mean
-// over points), the largest error over all frames, and the registration time per cloud.
+// over points), the largest error over all frames, the registration time per cloud, and how
+// often the model was held: clouds with too few matches (ours), or clouds times parts that
+// had fewer than three matches and kept their last transform (PCL).
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "deformable_collision/core/cloud_registration.h"
 #include "deformable_collision/core/shape_matching.h"
 #include "deformable_collision/scenes/camera_gripper_scene.h"
+#include "pcl_icp_registration.h"
 
 namespace {
 
 using deformable_collision::CameraGripperConfig;
 using deformable_collision::CameraGripperScene;
 using deformable_collision::CloudRegistration;
+using deformable_collision::PclIcpRegistration;
 using deformable_collision::RegistrationConfig;
 using deformable_collision::ShapeMatchingBody;
 using deformable_collision::ShapeMatchingConfig;
@@ -38,6 +47,7 @@ struct Settings {
   int frames = 100;
   std::string mode = "linear";
   int clusters = 6;
+  std::string method = "ours";
   bool leave_in_place = false;
   RegistrationConfig registration;
 };
@@ -49,6 +59,54 @@ struct Errors {
   double worst_registration_ms = 0.0;
   std::size_t held = 0;
 };
+
+/// One way of following the sponge: what run() times and scores.
+class Registrar {
+ public:
+  virtual ~Registrar() = default;
+  /// Registers one cloud (world frame) seen from `viewpoint_m`; returns how much it held.
+  virtual std::size_t registerCloud(const std::vector<Eigen::Vector3d>& cloud_m,
+                                    const Eigen::Vector3d& viewpoint_m) = 0;
+  /// The model's points in the world frame, in model order.
+  virtual const std::vector<Eigen::Vector3d>& positions() const = 0;
+};
+
+class OursRegistrar : public Registrar {
+ public:
+  OursRegistrar(ShapeMatchingBody body, const Settings& s)
+      : body_(std::move(body)), registration_(s.registration), leave_in_place_(s.leave_in_place) {}
+  std::size_t registerCloud(const std::vector<Eigen::Vector3d>& cloud_m,
+                            const Eigen::Vector3d& viewpoint_m) override {
+    if (leave_in_place_) return 0;
+    return registration_.registerCloud(body_, cloud_m, viewpoint_m).held ? 1 : 0;
+  }
+  const std::vector<Eigen::Vector3d>& positions() const override { return body_.positions(); }
+
+ private:
+  ShapeMatchingBody body_;
+  CloudRegistration registration_;
+  bool leave_in_place_;
+};
+
+class PclIcpRegistrar : public Registrar {
+ public:
+  PclIcpRegistrar(const std::vector<Eigen::Vector3d>& rest_points,
+                  const std::vector<std::vector<std::uint32_t>>& parts, const RegistrationConfig& config)
+      : registration_(rest_points, parts, config) {}
+  std::size_t registerCloud(const std::vector<Eigen::Vector3d>& cloud_m,
+                            const Eigen::Vector3d& /*viewpoint_m*/) override {
+    return registration_.registerCloud(cloud_m);
+  }
+  const std::vector<Eigen::Vector3d>& positions() const override { return registration_.positions(); }
+
+ private:
+  PclIcpRegistration registration_;
+};
+
+[[noreturn]] void usageError(const std::string& what) {
+  std::fprintf(stderr, "bench_registration: %s\n", what.c_str());
+  std::exit(2);
+}
 
 Settings parse(int argc, char** argv) {
   Settings s;
@@ -62,13 +120,48 @@ Settings parse(int argc, char** argv) {
     else if (key == "--iterations") s.registration.iterations = std::atoi(value);
     else if (key == "--cloud-points") s.registration.max_cloud_points = std::strtoul(value, nullptr, 10);
     else if (key == "--model-points") s.registration.max_model_points = std::strtoul(value, nullptr, 10);
+    else if (key == "--method") s.method = value;
     else if (key == "--static") s.leave_in_place = std::atoi(value) != 0;
-    else {
-      std::fprintf(stderr, "unknown option %s\n", key.c_str());
-      std::exit(2);
+    else usageError("unknown option " + key);
+  }
+  if (s.method != "ours" && s.method != "pcl_icp" && s.method != "pcl_icp_clusters") {
+    usageError("unknown method " + s.method + " (ours, pcl_icp, pcl_icp_clusters)");
+  }
+  if (s.leave_in_place && s.method != "ours") usageError("--static 1 is a setting of --method ours");
+  return s;
+}
+
+std::unique_ptr<Registrar> makeRegistrar(const Settings& s, const std::vector<Eigen::Vector3d>& rest_points) {
+  ShapeMatchingConfig shape;
+  shape.mode = *deformable_collision::parseDeformationMode(s.mode);
+  shape.clusters = s.clusters;
+  ShapeMatchingBody body(rest_points, shape);
+  if (s.method == "ours") return std::make_unique<OursRegistrar>(std::move(body), s);
+  std::vector<std::vector<std::uint32_t>> parts;
+  if (s.method == "pcl_icp") {
+    parts.emplace_back(rest_points.size());
+    for (std::uint32_t i = 0; i < rest_points.size(); ++i) parts.back()[i] = i;
+  } else {
+    for (std::size_t k = 0; k < body.clusterCount(); ++k) parts.push_back(body.cluster(k).points);
+  }
+  return std::make_unique<PclIcpRegistrar>(rest_points, parts, s.registration);
+}
+
+/// Adds one frame's errors of `positions` against the scene's ground truth to `errors`.
+void score(const std::vector<Eigen::Vector3d>& positions, const CameraGripperScene& scene, int frames,
+           Errors& errors) {
+  double seen_sum = 0.0, hidden_sum = 0.0;
+  std::size_t seen = 0, hidden = 0;
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const double e = (positions[i] - scene.groundTruth()[i]).norm();
+    if (scene.groundTruthVisible()[i]) {
+      seen_sum += e, ++seen, errors.seen_max_m = std::max(errors.seen_max_m, e);
+    } else {
+      hidden_sum += e, ++hidden, errors.hidden_max_m = std::max(errors.hidden_max_m, e);
     }
   }
-  return s;
+  errors.seen_mean_m += (seen ? seen_sum / seen : 0.0) / frames;
+  errors.hidden_mean_m += (hidden ? hidden_sum / hidden : 0.0) / frames;
 }
 
 Errors run(const Settings& s) {
@@ -78,11 +171,7 @@ Errors run(const Settings& s) {
   // One squeeze-bend-release over the run: the largest deformation at its middle.
   scene_config.cycle_s = s.frames / kRateHz;
   CameraGripperScene scene(scene_config);
-  ShapeMatchingConfig shape;
-  shape.mode = *deformable_collision::parseDeformationMode(s.mode);
-  shape.clusters = s.clusters;
-  ShapeMatchingBody body(scene.restModel(), shape);
-  CloudRegistration registration(s.registration);
+  const std::unique_ptr<Registrar> registrar = makeRegistrar(s, scene.restModel());
   Errors errors;
   std::vector<Eigen::Vector3d> cloud;
   for (int frame = 1; frame <= s.frames; ++frame) {
@@ -92,22 +181,11 @@ Errors run(const Settings& s) {
     cloud.clear();
     for (const auto& p : scene.cloud()) cloud.push_back(camera * p.cast<double>());
     const auto start = std::chrono::steady_clock::now();
-    if (!s.leave_in_place) errors.held += registration.registerCloud(body, cloud, camera.translation()).held ? 1 : 0;
+    errors.held += registrar->registerCloud(cloud, camera.translation());
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     errors.registration_ms += ms / s.frames;
     errors.worst_registration_ms = std::max(errors.worst_registration_ms, ms);
-    double seen_sum = 0.0, hidden_sum = 0.0;
-    std::size_t seen = 0, hidden = 0;
-    for (std::size_t i = 0; i < body.pointCount(); ++i) {
-      const double e = (body.positions()[i] - scene.groundTruth()[i]).norm();
-      if (scene.groundTruthVisible()[i]) {
-        seen_sum += e, ++seen, errors.seen_max_m = std::max(errors.seen_max_m, e);
-      } else {
-        hidden_sum += e, ++hidden, errors.hidden_max_m = std::max(errors.hidden_max_m, e);
-      }
-    }
-    errors.seen_mean_m += (seen ? seen_sum / seen : 0.0) / s.frames;
-    errors.hidden_mean_m += (hidden ? hidden_sum / hidden : 0.0) / s.frames;
+    score(registrar->positions(), scene, s.frames, errors);
   }
   return errors;
 }
@@ -117,9 +195,9 @@ Errors run(const Settings& s) {
 int main(int argc, char** argv) {
   const Settings s = parse(argc, argv);
   const Errors e = run(s);
-  std::printf("points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
+  std::printf("method %s points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
               "seen mean %.2f max %.2f mm | hidden mean %.2f max %.2f mm | registration %.2f ms (worst %.2f) | held %zu\n",
-              s.points, s.frames, s.mode.c_str(), s.clusters,
+              s.method.c_str(), s.points, s.frames, s.mode.c_str(), s.clusters,
               s.leave_in_place ? "static" : ("iterations " + std::to_string(s.registration.iterations)).c_str(),
               s.registration.max_cloud_points, s.registration.max_model_points, 1e3 * e.seen_mean_m,
               1e3 * e.seen_max_m, 1e3 * e.hidden_mean_m, 1e3 * e.hidden_max_m, e.registration_ms,
