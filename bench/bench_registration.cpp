@@ -37,7 +37,7 @@ namespace {
 using deformable_collision::CameraGripperConfig;
 using deformable_collision::CameraGripperScene;
 using deformable_collision::CloudRegistration;
-using deformable_collision::PclIcpRegistration;
+using deformable_collision::bench::PclIcpRegistration;
 using deformable_collision::RegistrationConfig;
 using deformable_collision::ShapeMatchingBody;
 using deformable_collision::ShapeMatchingConfig;

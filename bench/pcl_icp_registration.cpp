@@ -10,7 +10,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-namespace deformable_collision {
+namespace deformable_collision::bench {
 
 namespace {
 
@@ -119,4 +119,4 @@ void PclIcpRegistration::placePoints() {
   for (std::size_t i = 0; i < positions_.size(); ++i) positions_[i] /= parts_of_point_[i];
 }
 
-}  // namespace deformable_collision
+}  // namespace deformable_collision::bench

@@ -8,7 +8,7 @@
 
 #include "deformable_collision/core/cloud_registration.h"
 
-namespace deformable_collision {
+namespace deformable_collision::bench {
 
 /// PCL's rigid ICP (pcl::IterativeClosestPoint) as a peer of CloudRegistration in
 /// bench_registration: the model is cut into rigid parts (the whole object, or each
@@ -49,4 +49,4 @@ class PclIcpRegistration {
   std::unique_ptr<Samples> samples_;
 };
 
-}  // namespace deformable_collision
+}  // namespace deformable_collision::bench
