@@ -10,10 +10,10 @@
 #include <optional>
 #include <string>
 
+#include "deformable_collision/ros/cloud_transform.h"
 #include "deformable_collision/ros/model_file.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 #include "deformable_collision/scenes/camera_gripper_scene.h"
-#include "deformable_collision/tools/transform_message.h"
 
 namespace deformable_collision {
 namespace {
@@ -178,10 +178,10 @@ int runCameraGripperPublisher(ros::NodeHandle& node_handle, const ros::NodeHandl
     scene->render(time_s);
     // The frames first, so that a listener can place the clouds as soon as they arrive.
     broadcaster.sendTransform(
-        toTransform(scene->cameraPose(time_s), now, params->fixed_frame, kCameraFrame));
+        toTransformStamped(scene->cameraPose(time_s), now, params->fixed_frame, kCameraFrame));
     broadcaster.sendTransform(
-        toTransform(scene->jawPose(JawSide::kLeft, time_s), now, params->fixed_frame, "jaw_left"));
-    broadcaster.sendTransform(toTransform(scene->jawPose(JawSide::kRight, time_s), now,
+        toTransformStamped(scene->jawPose(JawSide::kLeft, time_s), now, params->fixed_frame, "jaw_left"));
+    broadcaster.sendTransform(toTransformStamped(scene->jawPose(JawSide::kRight, time_s), now,
                                           params->fixed_frame, "jaw_right"));
     auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
     cloud->header.stamp = now;

@@ -14,15 +14,15 @@
 #include <string>
 #include <vector>
 
+#include "deformable_collision/ros/cloud_transform.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/tools/camera_gripper_publisher.h"
-#include "deformable_collision/tools/transform_message.h"
 
 namespace {
 
 using deformable_collision::DemoScene;
-using deformable_collision::toTransform;
+using deformable_collision::toTransformStamped;
 
 struct PublisherParams {
   std::string scene_name;
@@ -73,7 +73,7 @@ void publishScene(const PublisherParams& params, const deformable_collision::Sce
     if (kinematic) {
       // A kinematic object is its rest shape in its own frame, moved by tf.
       const auto pose = deformable_collision::demoKinematicPose(params.scene_kind, object.name, time_s);
-      broadcaster.sendTransform(toTransform(pose.value_or(Eigen::Isometry3d::Identity()), now,
+      broadcaster.sendTransform(toTransformStamped(pose.value_or(Eigen::Isometry3d::Identity()), now,
                                             params.fixed_frame, object.name));
     }
     if (publishers[i].getNumSubscribers() == 0) continue;
