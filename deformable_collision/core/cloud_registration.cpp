@@ -96,8 +96,10 @@ constexpr double kRigidStepPriorShare = 0.1;
 /// Neighbours whose spread gives a matching point's surface normal.
 constexpr std::size_t kNormalNeighbours = 12;
 /// A neighbourhood is flat where it spreads this much less across than along: a face, not
-/// an edge, whose points are matched along the normal only.
-constexpr double kFlatness = 0.01;
+/// an edge, whose points are matched along the normal only. Loose enough for a scan or a
+/// first cloud with the camera's noise (1 mm across at 2 mm spacing spreads about 0.15 as
+/// much across as along).
+constexpr double kFlatness = 0.25;
 
 /// The rest shape's surface at each chosen point: the direction in which its nearest
 /// neighbours spread least, turned away from the shape's centre (outwards on a convex

@@ -191,7 +191,7 @@ INSTANTIATE_TEST_SUITE_P(
         RegistrationCase{"affine_full", DeformationMode::kLinear, 1, affineStretch, std::nullopt, 0.0, 0.0, 3e-3, 6e-3, 0, 0},
         RegistrationCase{"twist_quadratic_full_noisy", DeformationMode::kQuadratic, 3, twist, std::nullopt, 0.001, 0.05, 1.5e-3, 4.5e-3, 0, 0},
         RegistrationCase{"bend_linear_one_side_noisy", DeformationMode::kLinear, 8, bend, kOneSide, 0.001, 0.05, 2e-3, 7e-3, 2e-3, 7e-3},
-        RegistrationCase{"bend_quadratic_one_side_noisy", DeformationMode::kQuadratic, 3, bend, kOneSide, 0.001, 0.05, 1.6e-3, 5e-3, 1.5e-3, 5e-3},
+        RegistrationCase{"bend_quadratic_one_side_noisy", DeformationMode::kQuadratic, 3, bend, kOneSide, 0.001, 0.05, 2e-3, 6e-3, 2e-3, 6e-3},
         RegistrationCase{"twist_linear_one_side_noisy", DeformationMode::kLinear, 8, twist, kOneSide, 0.001, 0.05, 3e-3, 9e-3, 3e-3, 9e-3},
         // Seen from one side, a stretch along a seen face shows only where the face ends:
         // point-to-plane matches leave it to the prior, and the errors are several times
@@ -339,6 +339,24 @@ TEST(SceneRegistration, FindsContactsOnTheHiddenSide) {
     EXPECT_LT((c.contact.position - touch_point).norm(), 0.016) << "contact far from the probe";
   }
   EXPECT_GT(with_touching, 0u) << "the probe touching the hidden face is not found";
+}
+
+// A model taken from a camera's first cloud is as noisy as the camera: it still registers.
+TEST(NoisyModel, RegistersLaterClouds) {
+  const Points model = cloudOf(rigidMotion, 0.0, 4000, kOneSide, 0.001, 0.0, 41);
+  Points finite;
+  for (const auto& p : model) {
+    if (p.allFinite()) finite.push_back(p);
+  }
+  ShapeMatchingBody body(finite, ShapeMatchingConfig{});
+  CloudRegistration registration{RegistrationConfig{}};
+  const Eigen::Vector3d camera = 0.5 * kOneSide.normalized();
+  for (int frame = 1; frame <= 5; ++frame) {
+    const RegistrationReport report = registration.registerCloud(
+        body, cloudOf(rigidMotion, 0.01 * frame, 4000, kOneSide, 0.001, 0.0, 60 + frame), camera);
+    ASSERT_FALSE(report.held) << "cloud " << frame;
+    EXPECT_GT(report.used_points, 3 * report.rejected_points) << "cloud " << frame;
+  }
 }
 
 TEST(RegistrationConfigTest, RefusesBadValuesByName) {
