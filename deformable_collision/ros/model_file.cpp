@@ -3,6 +3,7 @@
 #include <pcl/PCLPointCloud2.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/ply_io.h>
+#include <pcl_conversions/pcl_conversions.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <algorithm>
@@ -33,27 +34,6 @@ std::string lowerCaseExtension(const std::string& path) {
   return extension;
 }
 
-/// The same bytes as a ROS message, so that one reader checks and converts every layout.
-sensor_msgs::PointCloud2 toMessage(pcl::PCLPointCloud2&& cloud) {
-  sensor_msgs::PointCloud2 message;
-  message.height = cloud.height;
-  message.width = cloud.width;
-  message.is_bigendian = cloud.is_bigendian;
-  message.point_step = cloud.point_step;
-  message.row_step = cloud.row_step;
-  message.is_dense = cloud.is_dense;
-  for (const pcl::PCLPointField& field : cloud.fields) {
-    sensor_msgs::PointField out;
-    out.name = field.name;
-    out.offset = field.offset;
-    out.datatype = field.datatype;
-    out.count = field.count;
-    message.fields.push_back(out);
-  }
-  message.data = std::move(cloud.data);
-  return message;
-}
-
 }  // namespace
 
 std::vector<Eigen::Vector3d> readModelFile(const std::string& path) {
@@ -71,8 +51,11 @@ std::vector<Eigen::Vector3d> readModelFile(const std::string& path) {
     throw modelFileError(path, "the extension must be .ply or .pcd");
   }
   if (code < 0) throw modelFileError(path, "PCL could not read it as " + extension.substr(1));
+  // The same bytes as a ROS message, so that one reader checks and converts every layout.
+  sensor_msgs::PointCloud2 message;
+  pcl_conversions::moveFromPCL(cloud, message);
   std::vector<Eigen::Vector3d> points;
-  const CloudReadResult read = readCloudPoints(toMessage(std::move(cloud)), NonFinitePoints::kDrop,
+  const CloudReadResult read = readCloudPoints(message, NonFinitePoints::kDrop,
                                                std::numeric_limits<std::size_t>::max(), points);
   if (!read.ok()) throw modelFileError(path, read.error);
   if (points.empty()) throw modelFileError(path, "has no point with finite x, y and z");
