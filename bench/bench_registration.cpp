@@ -2,18 +2,25 @@
 // bent and twisted over F frames, seen at 30 Hz by the camera_gripper scene's virtual depth
 // camera (320 x 240, 1 mm noise, dropout, jaws inside the crop as outliers). Per cloud: the
 // registration's time and the model's error against the ground truth, on the side the camera
-// sees and on the hidden side.
+// sees and on the hidden side, in all and off the surface (along the true normal).
 //
 //   bench_registration [--points N] [--frames F] [--mode rigid|linear|quadratic]
 //                      [--clusters K] [--iterations I] [--cloud-points C] [--model-points M]
-//                      [--method ours|pcl_icp|pcl_icp_clusters] [--static 1]
+//                      [--method ours|pcl_icp|pcl_icp_clusters|model_limit] [--static 1]
+//                      [--cloud camera|truth]
 //
 // --method: ours is CloudRegistration; pcl_icp is PCL's rigid ICP of the whole model, and
 // pcl_icp_clusters of each of the body's K clusters alone, on the same thinned clouds with
 // the same rounds and largest match distance (PclIcpRegistration); --model-points is ours
 // alone, PCL matches to every rest point of a part.
 // --static 1 leaves the rest model in place (no registration): the baseline a registration
-// must beat.
+// must beat. --method model_limit is no registration: each cluster's transform (by --mode)
+// is the least-squares fit to the ground truth of all its points, the best the model can
+// place its points. --cloud truth gives the registration the ground truth's points that the
+// camera sees instead of the camera's cloud: no noise, no outliers, no holes, every seen
+// point of the surface, so what error is left is not the camera's.
+// The error off the surface is the part of a point's error along the true surface normal;
+// the rest is a slide along the surface, which a match of surface to surface cannot see.
 // Prints one line per setting: the means over the frames of the seen and hidden error (mean
 // over points), the largest error over all frames, the registration time per cloud, and how
 // often the model was held: clouds with too few matches (ours), or clouds times parts that
@@ -49,11 +56,13 @@ struct Settings {
   int clusters = 6;
   std::string method = "ours";
   bool leave_in_place = false;
+  bool truth_cloud = false;
   RegistrationConfig registration;
 };
 
 struct Errors {
   double seen_mean_m = 0.0, hidden_mean_m = 0.0;  ///< Mean over frames of the mean over points.
+  double seen_off_surface_m = 0.0, hidden_off_surface_m = 0.0;  ///< The same, along the normal.
   double seen_max_m = 0.0, hidden_max_m = 0.0;    ///< Largest over frames and points.
   double registration_ms = 0.0;                   ///< Mean per cloud.
   double worst_registration_ms = 0.0;
@@ -103,6 +112,62 @@ class PclIcpRegistrar : public Registrar {
   PclIcpRegistration registration_;
 };
 
+/// Not a registration: the model's best fit to the ground truth (Settings::method model_limit).
+class ModelLimitRegistrar : public Registrar {
+ public:
+  ModelLimitRegistrar(ShapeMatchingBody body, const CameraGripperScene& scene)
+      : body_(std::move(body)), scene_(scene), positions_(body_.pointCount()) {}
+  std::size_t registerCloud(const std::vector<Eigen::Vector3d>& /*cloud_m*/,
+                            const Eigen::Vector3d& /*viewpoint_m*/) override;
+  const std::vector<Eigen::Vector3d>& positions() const override { return positions_; }
+
+ private:
+  ShapeMatchingBody body_;
+  const CameraGripperScene& scene_;
+  std::vector<Eigen::Vector3d> positions_;
+};
+
+std::size_t ModelLimitRegistrar::registerCloud(const std::vector<Eigen::Vector3d>& /*cloud_m*/,
+                                               const Eigen::Vector3d& /*viewpoint_m*/) {
+  const auto mode = body_.config().mode;
+  const int feature_count = mode == deformable_collision::DeformationMode::kQuadratic ? 9 : 3;
+  std::vector<int> clusters_of_point(positions_.size(), 0);
+  for (auto& p : positions_) p.setZero();
+  for (std::size_t k = 0; k < body_.clusterCount(); ++k) {
+    const auto& cluster = body_.cluster(k);
+    // Rows [q~ 1] of the cluster's points against their true positions.
+    Eigen::MatrixXd features(cluster.points.size(), feature_count + 1);
+    Eigen::MatrixXd truth(cluster.points.size(), 3);
+    for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+      features.row(j).head(feature_count) =
+          deformable_collision::quadraticFeatures(cluster.rest_offsets[j]).head(feature_count).transpose();
+      features(j, feature_count) = 1.0;
+      truth.row(j) = scene_.groundTruth()[cluster.points[j]].transpose();
+    }
+    Eigen::MatrixXd transform =
+        (features.transpose() * features).ldlt().solve(features.transpose() * truth);
+    if (mode == deformable_collision::DeformationMode::kRigid) {
+      // The rotation nearest the fit's linear part, and the translation that goes with it.
+      Eigen::JacobiSVD<Eigen::Matrix3d> svd(transform.topRows(3).transpose(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+      Eigen::Matrix3d rotation = svd.matrixU() * svd.matrixV().transpose();
+      if (rotation.determinant() < 0.0) {
+        Eigen::Matrix3d flip = Eigen::Matrix3d::Identity();
+        flip(2, 2) = -1.0;
+        rotation = svd.matrixU() * flip * svd.matrixV().transpose();
+      }
+      transform.topRows(3) = rotation.transpose();
+      transform.row(3) = (truth.colwise().mean() - features.leftCols(3).colwise().mean() * rotation.transpose());
+    }
+    const Eigen::MatrixXd placed = features * transform;
+    for (std::size_t j = 0; j < cluster.points.size(); ++j) {
+      positions_[cluster.points[j]] += placed.row(j).transpose();
+      ++clusters_of_point[cluster.points[j]];
+    }
+  }
+  for (std::size_t i = 0; i < positions_.size(); ++i) positions_[i] /= clusters_of_point[i];
+  return 0;
+}
+
 [[noreturn]] void usageError(const std::string& what) {
   std::fprintf(stderr, "bench_registration: %s\n", what.c_str());
   std::exit(2);
@@ -122,21 +187,25 @@ Settings parse(int argc, char** argv) {
     else if (key == "--model-points") s.registration.max_model_points = std::strtoul(value, nullptr, 10);
     else if (key == "--method") s.method = value;
     else if (key == "--static") s.leave_in_place = std::atoi(value) != 0;
+    else if (key == "--cloud") s.truth_cloud = std::string(value) == "truth";
     else usageError("unknown option " + key);
   }
-  if (s.method != "ours" && s.method != "pcl_icp" && s.method != "pcl_icp_clusters") {
-    usageError("unknown method " + s.method + " (ours, pcl_icp, pcl_icp_clusters)");
+  if (s.method != "ours" && s.method != "pcl_icp" && s.method != "pcl_icp_clusters" &&
+      s.method != "model_limit") {
+    usageError("unknown method " + s.method + " (ours, pcl_icp, pcl_icp_clusters, model_limit)");
   }
   if (s.leave_in_place && s.method != "ours") usageError("--static 1 is a setting of --method ours");
   return s;
 }
 
-std::unique_ptr<Registrar> makeRegistrar(const Settings& s, const std::vector<Eigen::Vector3d>& rest_points) {
+std::unique_ptr<Registrar> makeRegistrar(const Settings& s, const CameraGripperScene& scene) {
+  const std::vector<Eigen::Vector3d> rest_points = scene.restModel();
   ShapeMatchingConfig shape;
   shape.mode = *deformable_collision::parseDeformationMode(s.mode);
   shape.clusters = s.clusters;
   ShapeMatchingBody body(rest_points, shape);
   if (s.method == "ours") return std::make_unique<OursRegistrar>(std::move(body), s);
+  if (s.method == "model_limit") return std::make_unique<ModelLimitRegistrar>(std::move(body), scene);
   std::vector<std::vector<std::uint32_t>> parts;
   if (s.method == "pcl_icp") {
     parts.emplace_back(rest_points.size());
@@ -150,18 +219,23 @@ std::unique_ptr<Registrar> makeRegistrar(const Settings& s, const std::vector<Ei
 /// Adds one frame's errors of `positions` against the scene's ground truth to `errors`.
 void score(const std::vector<Eigen::Vector3d>& positions, const CameraGripperScene& scene, int frames,
            Errors& errors) {
-  double seen_sum = 0.0, hidden_sum = 0.0;
+  double seen_sum = 0.0, hidden_sum = 0.0, seen_off_sum = 0.0, hidden_off_sum = 0.0;
   std::size_t seen = 0, hidden = 0;
   for (std::size_t i = 0; i < positions.size(); ++i) {
-    const double e = (positions[i] - scene.groundTruth()[i]).norm();
+    const Eigen::Vector3d error = positions[i] - scene.groundTruth()[i];
+    const double e = error.norm();
+    const double off = std::abs(error.dot(scene.groundTruthNormals()[i]));
     if (scene.groundTruthVisible()[i]) {
-      seen_sum += e, ++seen, errors.seen_max_m = std::max(errors.seen_max_m, e);
+      seen_sum += e, seen_off_sum += off, ++seen, errors.seen_max_m = std::max(errors.seen_max_m, e);
     } else {
-      hidden_sum += e, ++hidden, errors.hidden_max_m = std::max(errors.hidden_max_m, e);
+      hidden_sum += e, hidden_off_sum += off, ++hidden, errors.hidden_max_m = std::max(errors.hidden_max_m, e);
     }
   }
-  errors.seen_mean_m += (seen ? seen_sum / seen : 0.0) / frames;
-  errors.hidden_mean_m += (hidden ? hidden_sum / hidden : 0.0) / frames;
+  const auto mean = [frames](double sum, std::size_t count) { return (count ? sum / count : 0.0) / frames; };
+  errors.seen_mean_m += mean(seen_sum, seen);
+  errors.hidden_mean_m += mean(hidden_sum, hidden);
+  errors.seen_off_surface_m += mean(seen_off_sum, seen);
+  errors.hidden_off_surface_m += mean(hidden_off_sum, hidden);
 }
 
 Errors run(const Settings& s) {
@@ -171,7 +245,7 @@ Errors run(const Settings& s) {
   // One squeeze-bend-release over the run: the largest deformation at its middle.
   scene_config.cycle_s = s.frames / kRateHz;
   CameraGripperScene scene(scene_config);
-  const std::unique_ptr<Registrar> registrar = makeRegistrar(s, scene.restModel());
+  const std::unique_ptr<Registrar> registrar = makeRegistrar(s, scene);
   Errors errors;
   std::vector<Eigen::Vector3d> cloud;
   for (int frame = 1; frame <= s.frames; ++frame) {
@@ -179,7 +253,13 @@ Errors run(const Settings& s) {
     scene.render(time_s);
     const Eigen::Isometry3d camera = scene.cameraPose(time_s);
     cloud.clear();
-    for (const auto& p : scene.cloud()) cloud.push_back(camera * p.cast<double>());
+    if (s.truth_cloud) {
+      for (std::size_t i = 0; i < scene.groundTruth().size(); ++i) {
+        if (scene.groundTruthVisible()[i]) cloud.push_back(scene.groundTruth()[i]);
+      }
+    } else {
+      for (const auto& p : scene.cloud()) cloud.push_back(camera * p.cast<double>());
+    }
     const auto start = std::chrono::steady_clock::now();
     errors.held += registrar->registerCloud(cloud, camera.translation());
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -195,12 +275,13 @@ Errors run(const Settings& s) {
 int main(int argc, char** argv) {
   const Settings s = parse(argc, argv);
   const Errors e = run(s);
-  std::printf("method %s points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
-              "seen mean %.2f max %.2f mm | hidden mean %.2f max %.2f mm | registration %.2f ms (worst %.2f) | held %zu\n",
-              s.method.c_str(), s.points, s.frames, s.mode.c_str(), s.clusters,
-              s.leave_in_place ? "static" : ("iterations " + std::to_string(s.registration.iterations)).c_str(),
+  std::printf("method %s%s points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
+              "seen mean %.2f max %.2f off surface %.2f mm | hidden mean %.2f max %.2f off surface %.2f mm | "
+              "registration %.2f ms (worst %.2f) | held %zu\n",
+              s.method.c_str(), s.truth_cloud ? " cloud truth" : "", s.points, s.frames, s.mode.c_str(),
+              s.clusters, s.leave_in_place ? "static" : ("iterations " + std::to_string(s.registration.iterations)).c_str(),
               s.registration.max_cloud_points, s.registration.max_model_points, 1e3 * e.seen_mean_m,
-              1e3 * e.seen_max_m, 1e3 * e.hidden_mean_m, 1e3 * e.hidden_max_m, e.registration_ms,
-              e.worst_registration_ms, e.held);
+              1e3 * e.seen_max_m, 1e3 * e.seen_off_surface_m, 1e3 * e.hidden_mean_m, 1e3 * e.hidden_max_m,
+              1e3 * e.hidden_off_surface_m, e.registration_ms, e.worst_registration_ms, e.held);
   return 0;
 }

@@ -58,6 +58,8 @@ class CameraGripperScene {
   const std::vector<Eigen::Vector3f>& cloud() const { return cloud_; }
   /// The sponge's points in the world frame, in model order.
   const std::vector<Eigen::Vector3d>& groundTruth() const { return ground_truth_; }
+  /// The deformed surface's outward unit normals at groundTruth(), in the world frame.
+  const std::vector<Eigen::Vector3d>& groundTruthNormals() const { return normals_; }
   /// Per model point, 1 if the camera sees it (VirtualCamera::visible).
   const std::vector<std::uint8_t>& groundTruthVisible() const;
   /// Finite points of cloud() in all, and those not on the sponge (jaws, floor).
