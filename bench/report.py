@@ -2,12 +2,14 @@
 """Writes the benchmark report from the CSV files of scripts/run_benchmarks.
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s3.csv,
-baselines.csv and memory.csv there; writes s1.md, s2.md, s3.md, memory.md, summary.md
-(the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png.
+baselines.csv, memory.csv and registration.txt there; writes s1.md, s2.md, s3.md, memory.md,
+summary.md (the targets, met or not) and the plots s1_time_vs_points.png,
+s2_error_vs_time.png, registration_error_vs_time.png.
 Run by Debian's python3 (python3-matplotlib).
 """
 import csv
 import os
+import re
 import sys
 
 import matplotlib
@@ -168,6 +170,52 @@ def memory_report(results):
     write(results, "memory.md", text)
 
 
+REGISTRATION_LINE = re.compile(
+    r"method (?P<method>\S+)(?P<truth> cloud truth)? .*?mode (?P<mode>\S+) .*?(?:iterations (?P<iterations>\d+)|static) "
+    r"cloud_points (?P<cloud_points>\d+) .*\| seen mean (?P<seen>[\d.]+) max [\d.]+ "
+    r"off surface (?P<seen_off>[\d.]+) mm \| hidden mean (?P<hidden>[\d.]+) max [\d.]+ "
+    r"off surface (?P<hidden_off>[\d.]+) mm \| registration (?P<ms>[\d.]+) ms")
+
+
+def registration_plot(results):
+    """Error against time per cloud of bench_registration's lines: ours over the work per
+    cloud (one point per rounds x cloud points), PCL's ICP, and the bounds as lines."""
+    with open(os.path.join(results, "registration.txt")) as f:
+        rows = [m.groupdict() for m in map(REGISTRATION_LINE.search, f) if m]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5.5), sharey=True)
+    for ax, side in ((axes[0], "seen"), (axes[1], "hidden")):
+        for key, style, label in ((side, "o", "material point"), (side + "_off", "s", "off the surface")):
+            ours = [r for r in rows if r["method"] == "ours" and r["iterations"] and not r["truth"]]
+            ax.plot([float(r["ms"]) for r in ours], [float(r[key]) for r in ours], style,
+                    label=f"ours, {label}")
+            for r in ours:
+                ax.annotate(f"{r['iterations']}x{r['cloud_points']}", (float(r["ms"]), float(r[key])),
+                            textcoords="offset points", xytext=(3, 3), fontsize=6)
+            for r in rows:
+                if r["method"] == "pcl_icp":
+                    ax.plot(float(r["ms"]), float(r[key]), style, color="grey",
+                            label=f"PCL rigid ICP, {label}")
+                if r["method"] == "ours" and r["truth"]:
+                    ax.plot(float(r["ms"]), float(r[key]), style, color="C2",
+                            label=f"ours given the seen truth, {label}")
+                if r["method"] == "ours" and not r["iterations"]:
+                    ax.axhline(float(r[key]), linestyle="--", linewidth=0.8, color="C3" if key == side else "C4",
+                               label=f"rest model left in place, {label}")
+                if r["method"] == "model_limit" and r["mode"] == "linear":
+                    ax.axhline(float(r[key]), linestyle=":", linewidth=0.8, color="C3" if key == side else "C4",
+                               label=f"the model's best fit to the truth, {label}")
+        ax.set_xscale("log")
+        ax.set_xlabel("registration, ms per cloud (rounds x cloud points)")
+        ax.set_ylabel(f"{side} side: mean error, mm")
+        ax.set_title(f"{side} side")
+        ax.grid(True, alpha=0.3)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=3, fontsize=7)
+    fig.suptitle("Registration of the camera_gripper sponge: error against time per cloud")
+    fig.tight_layout(rect=(0, 0.17, 1, 1))
+    fig.savefig(os.path.join(results, "registration_error_vs_time.png"), dpi=110)
+    plt.close(fig)
+
+
 def summary(results, sizes, ms, methods, s2_rows, s3):
     largest, smallest = sizes[-1], sizes[0]
     ours = ms[(largest, OURS)]
@@ -211,11 +259,13 @@ def main():
     s2_rows = s2_report(results)
     s3 = s3_report(results)
     memory_report(results)
+    registration_plot(results)
     summary(results, sizes, ms, methods, s2_rows, s3)
     for name in ("summary.md", "s1.md", "s2.md", "s3.md", "memory.md"):
         with open(os.path.join(results, name)) as f:
             print(f.read())
-    print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png)")
+    print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "
+          "registration_error_vs_time.png)")
 
 
 if __name__ == "__main__":
