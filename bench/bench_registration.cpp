@@ -21,6 +21,12 @@
 // point of the surface, so what error is left is not the camera's.
 // The error off the surface is the part of a point's error along the true surface normal;
 // the rest is a slide along the surface, which a match of surface to surface cannot see.
+// Contacts: the model's points and the jaws, in a scene of their own (the sponge tracked,
+// the jaws kinematic, 5 mm contact distance, the finest level), against the same scene
+// given the ground truth: per jaw and frame, the coverage (the largest distance from a true
+// contact to the nearest of the model's), and how often the model missed a jaw that
+// touched or touched one that did not. The cycle time is that scene's cycle after the
+// registration: what a node's cycle adds to it.
 // Prints one line per setting: the means over the frames of the seen and hidden error (mean
 // over points), the largest error over all frames, the registration time per cloud, and how
 // often the model was held: clouds with too few matches (ours), or clouds times parts that
@@ -30,11 +36,13 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "deformable_collision/core/cloud_registration.h"
+#include "deformable_collision/core/scene.h"
 #include "deformable_collision/core/shape_matching.h"
 #include "deformable_collision/scenes/camera_gripper_scene.h"
 #include "pcl_icp_registration.h"
@@ -67,7 +75,83 @@ struct Errors {
   double registration_ms = 0.0;                   ///< Mean per cloud.
   double worst_registration_ms = 0.0;
   std::size_t held = 0;
+  double cycle_ms = 0.0;  ///< The contact scene's cycle, mean per cloud.
+  double coverage_m = 0.0, worst_coverage_m = 0.0;  ///< Mean over jaw-frames both touched.
+  std::size_t jaw_frames_touched = 0;  ///< Jaw-frames where the true sponge touched the jaw.
+  std::size_t missed = 0, spurious = 0;  ///< Jaw-frames touched by the truth or the model alone.
 };
+
+using deformable_collision::JawSide;
+using deformable_collision::ObjectConfig;
+using deformable_collision::ObjectKind;
+using deformable_collision::Scene;
+using deformable_collision::SceneConfig;
+using deformable_collision::SceneContact;
+
+/// The sponge and the two jaws in a scene of their own: the sponge's contacts with each jaw
+/// for its points from anywhere (the ground truth, a registration).
+class JawContacts {
+ public:
+  JawContacts(const CameraGripperScene& scene, const ShapeMatchingConfig& shape) {
+    SceneConfig config;
+    config.contact_distance_m = 0.005;
+    scene_ = std::make_unique<Scene>(config);
+    ObjectConfig sponge{"sponge", ObjectKind::kTracked, shape};
+    sponge_ = scene_->addObject(sponge, scene.restModel());
+    for (const JawSide side : {JawSide::kLeft, JawSide::kRight}) {
+      ObjectConfig jaw{side == JawSide::kLeft ? "left_jaw" : "right_jaw", ObjectKind::kKinematic, {}};
+      jaws_[static_cast<int>(side)] = scene_->addObject(jaw, scene.jawPoints());
+    }
+  }
+
+  /// Places the sponge's points and the jaws at `time_s` and runs one cycle; its ms.
+  double update(const CameraGripperScene& scene, double time_s, const std::vector<Eigen::Vector3d>& sponge_m) {
+    scene_->observe(sponge_, sponge_m);
+    for (const JawSide side : {JawSide::kLeft, JawSide::kRight}) {
+      scene_->setPose(jaws_[static_cast<int>(side)], scene.jawPose(side, time_s));
+    }
+    const auto start = std::chrono::steady_clock::now();
+    scene_->cycle();
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    for (auto& positions : contact_positions_) positions.clear();
+    for (const SceneContact& c : scene_->contacts()) {
+      for (int side = 0; side < 2; ++side) {
+        if (c.object_a == jaws_[side] || c.object_b == jaws_[side]) {
+          contact_positions_[side].push_back(c.contact.position);
+        }
+      }
+    }
+    return ms;
+  }
+
+  const std::vector<Eigen::Vector3d>& contacts(int side) const { return contact_positions_[side]; }
+
+ private:
+  std::unique_ptr<Scene> scene_;
+  std::size_t sponge_ = 0;
+  std::size_t jaws_[2] = {0, 0};
+  std::vector<Eigen::Vector3d> contact_positions_[2];
+};
+
+/// Adds one frame's contacts of the model against the truth's to `errors`.
+void compareContacts(const JawContacts& truth, const JawContacts& model, Errors& errors) {
+  for (int side = 0; side < 2; ++side) {
+    const auto& expected = truth.contacts(side);
+    const auto& found = model.contacts(side);
+    if (expected.empty() != found.empty()) ++(expected.empty() ? errors.spurious : errors.missed);
+    if (expected.empty()) continue;
+    ++errors.jaw_frames_touched;
+    if (found.empty()) continue;
+    double coverage = 0.0;
+    for (const auto& e : expected) {
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const auto& f : found) nearest = std::min(nearest, (e - f).squaredNorm());
+      coverage = std::max(coverage, std::sqrt(nearest));
+    }
+    errors.coverage_m += coverage;
+    errors.worst_coverage_m = std::max(errors.worst_coverage_m, coverage);
+  }
+}
 
 /// One way of following the sponge: what run() times and scores.
 class Registrar {
@@ -246,6 +330,10 @@ Errors run(const Settings& s) {
   scene_config.cycle_s = s.frames / kRateHz;
   CameraGripperScene scene(scene_config);
   const std::unique_ptr<Registrar> registrar = makeRegistrar(s, scene);
+  ShapeMatchingConfig shape;
+  shape.mode = *deformable_collision::parseDeformationMode(s.mode);
+  shape.clusters = s.clusters;
+  JawContacts truth_contacts(scene, shape), model_contacts(scene, shape);
   Errors errors;
   std::vector<Eigen::Vector3d> cloud;
   for (int frame = 1; frame <= s.frames; ++frame) {
@@ -266,7 +354,12 @@ Errors run(const Settings& s) {
     errors.registration_ms += ms / s.frames;
     errors.worst_registration_ms = std::max(errors.worst_registration_ms, ms);
     score(registrar->positions(), scene, s.frames, errors);
+    truth_contacts.update(scene, time_s, scene.groundTruth());
+    errors.cycle_ms += model_contacts.update(scene, time_s, registrar->positions()) / s.frames;
+    compareContacts(truth_contacts, model_contacts, errors);
   }
+  const std::size_t both_touched = errors.jaw_frames_touched - errors.missed;
+  if (both_touched > 0) errors.coverage_m /= static_cast<double>(both_touched);
   return errors;
 }
 
@@ -277,11 +370,13 @@ int main(int argc, char** argv) {
   const Errors e = run(s);
   std::printf("method %s%s points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
               "seen mean %.2f max %.2f off surface %.2f mm | hidden mean %.2f max %.2f off surface %.2f mm | "
-              "registration %.2f ms (worst %.2f) | held %zu\n",
+              "registration %.2f ms (worst %.2f) | held %zu | cycle %.2f ms | contacts: coverage %.2f mm "
+              "(worst %.2f), missed %zu and spurious %zu of %zu jaw-frames touched\n",
               s.method.c_str(), s.truth_cloud ? " cloud truth" : "", s.points, s.frames, s.mode.c_str(),
               s.clusters, s.leave_in_place ? "static" : ("iterations " + std::to_string(s.registration.iterations)).c_str(),
               s.registration.max_cloud_points, s.registration.max_model_points, 1e3 * e.seen_mean_m,
               1e3 * e.seen_max_m, 1e3 * e.seen_off_surface_m, 1e3 * e.hidden_mean_m, 1e3 * e.hidden_max_m,
-              1e3 * e.hidden_off_surface_m, e.registration_ms, e.worst_registration_ms, e.held);
+              1e3 * e.hidden_off_surface_m, e.registration_ms, e.worst_registration_ms, e.held, e.cycle_ms,
+              1e3 * e.coverage_m, 1e3 * e.worst_coverage_m, e.missed, e.spurious, e.jaw_frames_touched);
   return 0;
 }
