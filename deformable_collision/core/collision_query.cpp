@@ -130,6 +130,7 @@ template <bool Wide>
                                                    const SphereTree& b, std::uint32_t leaf_b,
                                                    double contact_distance_m, ContactSink& contacts,
                                                    QueryCounters& counters) {
+  ++counters.leaf_pairs_tested;
   const LeafPoints points_a = leafPoints(a, leaf_a);
   const LeafPoints points_b = leafPoints(b, leaf_b);
   ClosestPair pair{contact_distance_m * contact_distance_m, points_a.count, 0};
@@ -366,6 +367,15 @@ struct HierarchyQuery::Descent {
     return to_leaves ? 0.0 : std::min(ancestors_m, overlap(sa, sb, contact_distance_m));
   }
 
+  /// Whether `node` of `tree`, whose points are not measured yet, is ruled out against
+  /// `other` by its bound alone: measuring a bucket reads all its points, scattered in the
+  /// body's order, and many buckets a descent meets are out of reach.
+  [[gnu::always_inline]] bool outOfReachUnmeasured(SphereTree& tree, std::uint32_t node,
+                                                   const Sphere& other) const {
+    return tree.measuresPoints(node, leaf_limit) &&
+           !withinReach(tree.boundWithoutPoints(node), other, contact_distance_m);
+  }
+
   /// Stacks the children of a's node (if `split_a`, else of b's) that come within reach of
   /// the other node, and returns the new stack height. Children go last first, so that
   /// contacts come in depth-first order; each is written on top and kept if it is within
@@ -383,15 +393,23 @@ struct HierarchyQuery::Descent {
     counters.node_pairs_tested += split.child_count;
     if (split_a) {
       for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
+        if (outOfReachUnmeasured(a, c, nb.sphere)) continue;
         const Sphere& child = a.current(c, leaf_limit).sphere;
         stack[stacked] = {c, pair.node_b, leastOverlap(pair.least_overlap_m, child, nb.sphere)};
-        stacked += withinReach(child, nb.sphere, contact_distance_m);
+        if (withinReach(child, nb.sphere, contact_distance_m)) {
+          a.prefetchChildren(c);
+          ++stacked;
+        }
       }
     } else {
       for (std::uint32_t c = nb.first_child + nb.child_count; c-- > nb.first_child;) {
+        if (outOfReachUnmeasured(b, c, na.sphere)) continue;
         const Sphere& child = b.current(c, leaf_limit).sphere;
         stack[stacked] = {pair.node_a, c, leastOverlap(pair.least_overlap_m, na.sphere, child)};
-        stacked += withinReach(na.sphere, child, contact_distance_m);
+        if (withinReach(na.sphere, child, contact_distance_m)) {
+          b.prefetchChildren(c);
+          ++stacked;
+        }
       }
     }
     return stacked;

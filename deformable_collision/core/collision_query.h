@@ -40,6 +40,7 @@ class ContactSink {
 
 struct QueryCounters {
   std::size_t node_pairs_tested = 0;
+  std::size_t leaf_pairs_tested = 0;  ///< Leaf pairs whose points were tested.
   std::size_t point_tests = 0;  ///< Point-sphere and point-point distance tests.
 };
 
@@ -61,7 +62,9 @@ class HierarchyQuery {
   /// to eight leaves (buckets) test their leaves' spheres all against all rather than
   /// descending pair by pair; an object of up to eight buckets is not descended: its buckets
   /// are tested all at once against the other's (all of them if it is small too, else each
-  /// bucket the descent reaches). Spheres are computed lazily (SphereTree::sphere).
+  /// bucket the descent reaches). Spheres are computed lazily (SphereTree::sphere); a bucket
+  /// not yet measured is first tested with its bound (SphereTree::boundWithoutPoints), and
+  /// its points are read only if that comes within reach.
   void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                ContactSink& contacts, QueryCounters& counters);
   /// collide() appending to a vector.

@@ -7,6 +7,8 @@
 #include <string>
 
 #include "deformable_collision/core/linear_algebra.h"
+#include "deformable_collision/core/wide_kernels.h"
+#include "deformable_collision/core/wide_vectors.h"
 
 namespace deformable_collision {
 namespace {
@@ -30,6 +32,41 @@ Eigen::Vector3d deformedCenter(const Eigen::Vector3d& rest_center,
   return deformation.transform.leftCols<3>() * rest_center + deformation.translation;
 }
 
+#if defined(__GNUC__) && defined(__x86_64__)
+DEFORMABLE_COLLISION_BEGIN_WIDE_KERNELS
+
+/// Copies the up to eight points at `indices` of `positions` (three coordinates a point)
+/// into the rows `x`, `y`, `z`, and returns the largest of their squared distances from
+/// `leaf_center`; with `exact`, raises `node_farthest_squared` to the largest from
+/// `node_center`. Eight points per instruction, each distance summed as Eigen sums it.
+__attribute__((target("avx512f"))) double gatherLeafAvx512(
+    const double* positions, const std::uint32_t* indices, std::uint32_t count, double* x,
+    double* y, double* z, const Eigen::Vector3d& leaf_center, const Eigen::Vector3d& node_center,
+    bool exact, double& node_farthest_squared) {
+  const __mmask8 lanes = lanesFrom(0, count);
+  const __m256i offsets = _mm512_castsi512_si256(
+      _mm512_mullo_epi32(_mm512_maskz_loadu_epi32(lanes, indices), _mm512_set1_epi32(3)));
+  const __m512d none = _mm512_setzero_pd();
+  const __m512d px = _mm512_mask_i32gather_pd(none, lanes, offsets, positions, 8);
+  const __m512d py = _mm512_mask_i32gather_pd(none, lanes, offsets, positions + 1, 8);
+  const __m512d pz = _mm512_mask_i32gather_pd(none, lanes, offsets, positions + 2, 8);
+  _mm512_mask_storeu_pd(x, lanes, px);
+  _mm512_mask_storeu_pd(y, lanes, py);
+  _mm512_mask_storeu_pd(z, lanes, pz);
+  if (exact) {
+    const __m512d squared =
+        squaredDistancesAvx512(node_center.x(), node_center.y(), node_center.z(), px, py, pz);
+    node_farthest_squared =
+        std::max(node_farthest_squared, _mm512_mask_reduce_max_pd(lanes, squared));
+  }
+  const __m512d squared =
+      squaredDistancesAvx512(leaf_center.x(), leaf_center.y(), leaf_center.z(), px, py, pz);
+  return std::max(0.0, _mm512_mask_reduce_max_pd(lanes, squared));
+}
+
+DEFORMABLE_COLLISION_END_WIDE_KERNELS
+#endif
+
 }  // namespace
 
 SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& config)
@@ -47,6 +84,8 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
                                 std::to_string(config.exact_radius_points) + " must be >= 0");
   }
   exact_radius_points_ = static_cast<std::uint32_t>(config.exact_radius_points);
+  // The gather addresses a coordinate by a 32-bit signed offset.
+  gather_wide_ = wideVectorsAvailable() && 3 * body.pointCount() <= 0x7FFFFFFFu;
   build(config);
   orderLeaves();
   states_.resize(nodes_.size());
@@ -331,12 +370,24 @@ void SphereTree::measureWithLeaves(std::uint32_t index) {
   double farthest_squared = 0.0;
   for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
     const Eigen::Vector3d leaf_center = deformedCenter(leaf_rest_centers_[k], deformation, mode);
+    const std::uint32_t first = leaf_slot_starts_[k];
+    const std::uint32_t count = leaf_slot_starts_[k + 1] - first;
     double leaf_farthest_squared = 0.0;
-    for (std::uint32_t s = leaf_slot_starts_[k]; s < leaf_slot_starts_[k + 1]; ++s) {
-      const Eigen::Vector3d& x = positions[point_indices_[s]];
-      slot_positions_.col(s) = x;
-      leaf_farthest_squared = std::max(leaf_farthest_squared, (x - leaf_center).squaredNorm());
-      if (exact) farthest_squared = std::max(farthest_squared, (x - center).squaredNorm());
+#if defined(__GNUC__) && defined(__x86_64__)
+    if (gather_wide_ && count <= 8) {
+      leaf_farthest_squared = gatherLeafAvx512(
+          positions.front().data(), &point_indices_[first], count, &slot_positions_(0, first),
+          &slot_positions_(1, first), &slot_positions_(2, first), leaf_center, center, exact,
+          farthest_squared);
+    } else
+#endif
+    {
+      for (std::uint32_t s = first; s < first + count; ++s) {
+        const Eigen::Vector3d& x = positions[point_indices_[s]];
+        slot_positions_.col(s) = x;
+        leaf_farthest_squared = std::max(leaf_farthest_squared, (x - leaf_center).squaredNorm());
+        if (exact) farthest_squared = std::max(farthest_squared, (x - center).squaredNorm());
+      }
     }
     // The leaf's NodeState is left alone: it is copied from here if ever asked for.
     counters_.spheres_updated += leaf_stamps_[k] != cycle_;
@@ -380,6 +431,15 @@ Sphere SphereTree::deformationSphere(std::uint32_t index) {
   }
   sphere.radius = withRoundingMargin(boundRadius(node, deformation), sphere.center);
   return sphere;
+}
+
+Sphere SphereTree::boundWithoutPoints(std::uint32_t index) {
+  const SphereNode& node = nodes_[index];
+  if (method_ != SphereUpdate::kDeformation || node.cluster < 0) return sphere(index);
+  const ClusterDeformation& deformation = body_->deformation(node.cluster);
+  const Eigen::Vector3d center =
+      deformedCenter(node.rest_center, deformation, body_->config().mode);
+  return {center, withRoundingMargin(boundRadius(node, deformation), center)};
 }
 
 Sphere SphereTree::exactSphere(std::uint32_t index) {

@@ -136,6 +136,30 @@ class SphereTree {
     return updateWithLeaves(node, leaf_limit);
   }
 
+  /// Asks the memory for what current() of the node's children reads: a descent reaches
+  /// them soon after the node, and otherwise waits on each in turn.
+  void prefetchChildren(std::uint32_t node) const {
+    const NodeState& state = states_[node];
+    for (std::uint32_t c = state.first_child; c < state.first_child + state.child_count; ++c) {
+      __builtin_prefetch(&states_[c]);
+      __builtin_prefetch(&nodes_[c]);
+    }
+  }
+
+  /// Whether current(node, leaf_limit) would pass over the node's points: a node of at most
+  /// `leaf_limit` leaves that is not yet current with its leaves in this cycle.
+  bool measuresPoints(std::uint32_t node, std::uint32_t leaf_limit) const {
+    const NodeState& state = states_[node];
+    return state.leaf_count <= leaf_limit && !state.isLeaf() &&
+           leaves_current_stamps_[node] != cycle_;
+  }
+
+  /// A sphere around the node's points in the current cycle that reads none of them: with
+  /// kDeformation, the bound of the paper's eq. 13/14 (docs/design.md, erratum 3) around the
+  /// node's deformed centre, wider than its measured sphere; otherwise its sphere. A query
+  /// rules a node out with it before paying for measuring the node's points.
+  Sphere boundWithoutPoints(std::uint32_t node);
+
   /// The current positions of the leaves' points, one row per coordinate, a column per
   /// slot of pointIndices(), so that a leaf's coordinates are contiguous. A leaf's columns
   /// are valid once current() returned its state in this cycle.
@@ -226,6 +250,8 @@ class SphereTree {
   std::vector<std::uint32_t> scratch_order_;
   std::vector<Sphere> scratch_spheres_;
   std::uint32_t exact_radius_points_ = 0;
+  /// Whether measureWithLeaves gathers a leaf's points eight per instruction.
+  bool gather_wide_ = false;
   SphereTreeCounters counters_;
 };
 
