@@ -156,8 +156,8 @@ class SphereTree {
 
   /// A sphere around the node's points in the current cycle that reads none of them: with
   /// kDeformation, the bound of the paper's eq. 13/14 (docs/design.md, erratum 3) around the
-  /// node's deformed centre, wider than its measured sphere; otherwise its sphere. A query
-  /// rules a node out with it before paying for measuring the node's points.
+  /// node's deformed centre, as a rule wider than its measured sphere; otherwise its sphere.
+  /// A query rules a node out with it before paying for measuring the node's points.
   Sphere boundWithoutPoints(std::uint32_t node);
 
   /// The current positions of the leaves' points, one row per coordinate, a column per
