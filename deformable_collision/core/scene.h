@@ -187,10 +187,13 @@ class Scene {
   void respond();
   /// Counts each object's hops to a fixed one over touching objects (support_depth).
   void rankSupport();
+  /// Once every pair is resolved: no object leaves moving into a fixed one it was pushed off.
+  void stopApproachToFixedPartners();
   /// Moves a dynamic object by its pairs' pushes and dents it where they need more.
   void applyObjectResponse(Object& object);
   void resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
                    std::size_t run_begin, std::size_t run_end);
+  void holdClearContact(ResolvingPair& pair);
   Eigen::Vector3d sideOfA(const ResolvingPair& pair);
   Eigen::Vector3d separatingNormal(const ResolvingPair& pair);
   /// One push per contact still too deep into pushes_.

@@ -110,6 +110,7 @@ void Scene::respond() {
     Object& b = *objects_[run.object_b];
     if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
   }
+  stopApproachToFixedPartners();
   for (auto& object : objects_) {
     object->velocity_after = object->dynamic()
                                  ? Eigen::Vector3d(object->body.meanVelocity() + object->velocity_change)
@@ -120,6 +121,26 @@ void Scene::respond() {
   }
   // Queries between cycles see the state after the response.
   refreshStaleTrees();
+}
+
+// A pair resolved after an object's pair with a fixed one may push it back into the fixed
+// one: two objects that both reach the floor share their pushes, and the upper one's share
+// drives the lower one down after the floor stopped it. It would then leave the response
+// moving into the floor while the floor holds its position, gain a step of gravity every
+// cycle and never rest. So every object stops approaching the fixed objects it was pushed
+// off, once all pairs have changed its velocity; the fixed object takes that momentum.
+void Scene::stopApproachToFixedPartners() {
+  for (const ContactRun& run : contact_runs_) {
+    Object& a = *objects_[run.object_a];
+    Object& b = *objects_[run.object_b];
+    if (a.dynamic() == b.dynamic()) continue;
+    Object& moving = a.dynamic() ? a : b;
+    const auto* side = moving.contact_memory.find(a.dynamic() ? run.object_b : run.object_a);
+    if (!side || side->cycle != cycle_count_) continue;
+    const double approach =
+        (moving.body.meanVelocity() + moving.velocity_change).dot(side->normal);
+    if (approach < 0.0) moving.velocity_change -= approach * side->normal;
+  }
 }
 
 void Scene::applyObjectResponse(Object& object) {
@@ -165,14 +186,31 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   pair.side_of_a = sideOfA(pair);
   if (!pair.one_side_fixed) pair.dynamic_normal = separatingNormal(pair);
   collectPushes(pair);
-  if (pushes_.empty()) return;
+  if (pushes_.empty()) {
+    holdClearContact(pair);
+    return;
+  }
   moveByMeanPush(pair);
   if (pair.one_side_fixed) clearPassedPoints(pair);
   // Dents wait until every pair has moved the object: a later pair may move it back, as
   // the second jaw of a gripper does, and a dent sized against this pair's move alone
   // would leave the first jaw's contact deep inside.
-  queueDents(pair);
+  if (pair.leaves || pair.one_side_fixed) queueDents(pair);
   const Eigen::Vector3d normal = pair.normal_sum.normalized();
+  rememberSide(pair, normal);
+  exchangeVelocities(pair, normal);
+}
+
+// A pair in contact whose points are all clear of half the contact distance needs no push,
+// but a contact seen in the last cycle still stops the approach along its side: a resting
+// object that a later pair lifted a little would otherwise fall freely for a cycle, pass
+// half the contact distance and be pushed back, and never rest.
+void Scene::holdClearContact(ResolvingPair& pair) {
+  Object& remembering = pair.a.dynamic() ? pair.a : pair.b;
+  const std::uint32_t partner = &remembering == &pair.a ? pair.index_b : pair.index_a;
+  const auto* remembered = remembering.contact_memory.find(partner);
+  if (!remembered || remembered->cycle + 1 < cycle_count_) return;
+  const Eigen::Vector3d normal = pair.side_of_a.normalized();
   rememberSide(pair, normal);
   exchangeVelocities(pair, normal);
 }
@@ -363,8 +401,14 @@ void Scene::moveByMeanPush(ResolvingPair& pair) {
     deepest_b = std::max(deepest_b, push.depth_b + mean_b.dot(push.normal));
   }
   const Eigen::Vector3d pair_direction = normal_sum.normalized();
-  if (pair.a.dynamic()) mean_a += pair.a.config.shape.stiffness * deepest_a * pair_direction;
-  if (pair.b.dynamic()) mean_b -= pair.b.config.shape.stiffness * deepest_b * pair_direction;
+  // Between two dynamic objects above the leaves nothing dents: the depths are those of the
+  // nodes' spheres (they stand for their points), and a dent would push a node's points by
+  // how deep the spheres overlap, not the points. Each object clears its deepest node whole.
+  const bool dents = pair.leaves || pair.one_side_fixed;
+  const double stiffness_a = dents ? pair.a.config.shape.stiffness : 1.0;
+  const double stiffness_b = dents ? pair.b.config.shape.stiffness : 1.0;
+  if (pair.a.dynamic()) mean_a += stiffness_a * deepest_a * pair_direction;
+  if (pair.b.dynamic()) mean_b -= stiffness_b * deepest_b * pair_direction;
   pair.move_a = mean_a;
   pair.move_b = mean_b;
   pair.normal_sum = normal_sum;
