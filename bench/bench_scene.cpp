@@ -7,7 +7,10 @@
 //     against the finest level: (i) coverage, the largest distance from a finest-level
 //     contact of the settled state to the nearest contact of the same object pair at this
 //     level; (ii) the RMS deviation of the soft objects' points from the finest-level run
-//     after the cycles, over their mean diameter. -> s2.csv, s2_state.csv, baselines.csv
+//     after the cycles, over their mean diameter; the whole cycle's time (shape matching
+//     included), and the state each level leaves: mean point speed, and how far point pairs
+//     of two soft objects lie inside half the contact distance (largest and mean, over the
+//     finest level's contacts). -> s2.csv, s2_state.csv, baselines.csv
 //   s3 results_dir [settle=150] [cycles=100]
 //     Three objects (19k points) at the finest level, stage by stage, with the conversion
 //     of every object's points to a PointCloud2 as the node publishes them. -> s3.csv,
@@ -156,12 +159,44 @@ std::vector<double> coverageByLevel(dc::Scene& scene) {
   return coverage;
 }
 
-/// Each coarser level from the same settled pile: its means and its points' RMS distance
-/// from the finest run's, relative to the diameter. False if the settled piles differ,
-/// which would make the comparison meaningless.
+/// The state a level's run leaves: how fast the soft points still move, and how far point
+/// pairs of two soft objects lie inside half the contact distance (where the response puts
+/// touching objects), from the finest level's contacts on that state.
+struct LevelEnd {
+  double speed_mps = 0.0;
+  double deepest_m = 0.0;
+  double mean_depth_m = 0.0;
+};
+
+LevelEnd describeEnd(dc::Scene& scene) {
+  LevelEnd end;
+  end.speed_mps = describePile(scene).speed_mps;
+  std::vector<dc::SceneContact> contacts;
+  scene.contactsAt(scene.maxLevel(), std::nullopt, std::nullopt, contacts);
+  const double half = 0.5 * scene.config().contact_distance_m;
+  std::size_t pairs = 0;
+  for (const dc::SceneContact& c : contacts) {
+    if (scene.objectConfig(c.object_a).kind != dc::ObjectKind::kDynamic ||
+        scene.objectConfig(c.object_b).kind != dc::ObjectKind::kDynamic) {
+      continue;
+    }
+    // At the leaves depth_m is the contact distance less the closest pair's distance.
+    const double inside = std::max(0.0, c.contact.depth_m - half);
+    end.deepest_m = std::max(end.deepest_m, inside);
+    end.mean_depth_m += inside;
+    ++pairs;
+  }
+  if (pairs > 0) end.mean_depth_m /= double(pairs);
+  return end;
+}
+
+/// Each coarser level from the same settled pile: its means, its end state and its points'
+/// RMS distance from the finest run's, relative to the diameter. False if the settled piles
+/// differ, which would make the comparison meaningless.
 bool runCoarserLevels(int settle, int cycles, const std::vector<Eigen::Vector3d>& settled_points,
                       const std::vector<Eigen::Vector3d>& reference_points, double diameter_m,
-                      std::vector<Means>& means, std::vector<double>& rms_rel) {
+                      std::vector<Means>& means, std::vector<LevelEnd>& ends,
+                      std::vector<double>& rms_rel) {
   const int finest = static_cast<int>(means.size()) - 1;
   for (int level = 1; level < finest; ++level) {
     auto scene = settled(dc::DemoScene::kPile, settle);
@@ -171,6 +206,7 @@ bool runCoarserLevels(int settle, int cycles, const std::vector<Eigen::Vector3d>
     }
     scene->setLevel(level);
     means[level] = runCycles(*scene, cycles);
+    ends[level] = describeEnd(*scene);
     const std::vector<Eigen::Vector3d> points = softPoints(*scene);
     double squared = 0.0;
     for (std::size_t p = 0; p < points.size(); ++p)
@@ -197,11 +233,13 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
   const std::vector<double> coverage = coverageByLevel(*reference);
   std::vector<Means> means(finest + 1);
   means[finest] = runCycles(*reference, cycles);
+  std::vector<LevelEnd> ends(finest + 1);
+  ends[finest] = describeEnd(*reference);
   const std::vector<Eigen::Vector3d> reference_points = softPoints(*reference);
   reference.reset();
   std::vector<double> rms_rel(finest + 1, 0.0);
   if (!runCoarserLevels(settle, cycles, settled_points, reference_points, pile.diameter_m, means,
-                        rms_rel)) {
+                        ends, rms_rel)) {
     return 1;
   }
 
@@ -211,19 +249,24 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
       "baseline %.3f ms\n\n",
       settled_points.size(), settle, cycles, pile.diameter_m, pile.speed_mps, baseline_ms);
   std::printf(
-      "| level | contacts | detection ms | response ms | total ms | / baseline | coverage m | "
-      "rms rel |\n|---|---|---|---|---|---|---|---|\n");
-  db::CsvAppender csv(
-      results_dir + "/s2.csv",
-      "level,contacts,detection_ms,response_ms,total_ms,coverage_error_m,rms_error_rel");
+      "| level | contacts | detection ms | response ms | total ms | / baseline | whole cycle ms | "
+      "coverage m | rms rel | speed after m/s | deepest m | mean depth m |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+  db::CsvAppender csv(results_dir + "/s2.csv",
+                      "level,contacts,detection_ms,response_ms,total_ms,shape_matching_ms,"
+                      "whole_cycle_ms,coverage_error_m,rms_error_rel,speed_after_mps,"
+                      "deepest_m,mean_depth_m");
   for (int level = 1; level <= finest; ++level) {
     const Means& m = means[level];
+    const LevelEnd& e = ends[level];
     const double total = m.detection_ms + m.response_ms;
-    std::printf("| %d | %.0f | %.3f | %.3f | %.3f | %.3f | %.4f | %.5f |\n", level, m.contacts,
-                m.detection_ms, m.response_ms, total, total / baseline_ms, coverage[level],
-                rms_rel[level]);
-    std::fprintf(csv.file(), "%d,%.1f,%.5f,%.5f,%.5f,%.6f,%.6f\n", level, m.contacts,
-                 m.detection_ms, m.response_ms, total, coverage[level], rms_rel[level]);
+    const double whole = total + m.shape_matching_ms;
+    std::printf("| %d | %.0f | %.3f | %.3f | %.3f | %.3f | %.3f | %.4f | %.5f | %.4f | %.4f | %.5f |\n",
+                level, m.contacts, m.detection_ms, m.response_ms, total, total / baseline_ms, whole,
+                coverage[level], rms_rel[level], e.speed_mps, e.deepest_m, e.mean_depth_m);
+    std::fprintf(csv.file(), "%d,%.1f,%.5f,%.5f,%.5f,%.5f,%.5f,%.6f,%.6f,%.6f,%.6f,%.6f\n", level,
+                 m.contacts, m.detection_ms, m.response_ms, total, m.shape_matching_ms, whole,
+                 coverage[level], rms_rel[level], e.speed_mps, e.deepest_m, e.mean_depth_m);
   }
   return 0;
 }

@@ -158,26 +158,36 @@ def s2_report(results):
              "the finest level to the nearest contact of the same object pair at this level, "
              "both on the settled state; RMS, the deviation of all soft points from the "
              f"finest-level run after the {state['cycles_per_level']} cycles, over the mean object "
-             f"diameter ({float(state['mean_diameter_m']):.4f} m). The settled pile still moves "
-             f"(mean point speed {float(state['mean_point_speed_mps']):.3f} m/s), so runs that "
-             "differ in any contact drift apart.\n\n")
+             f"diameter ({float(state['mean_diameter_m']):.4f} m); deepest and mean depth, how "
+             "far point pairs of two soft objects lie inside half the contact distance (where the "
+             "response puts touching objects) after the cycles, over the finest level's contacts. "
+             "Whole cycle: shape matching, detection and response. Mean point speed when settled "
+             f"{float(state['mean_point_speed_mps']):.3f} m/s; the speed after each level's cycles "
+             "is in the table.\n\n")
     body = [(r["level"], f"{float(r['contacts']):.0f}", f"{float(r['detection_ms']):.2f}",
              f"{float(r['response_ms']):.2f}", f"{float(r['total_ms']):.2f}",
-             f"{float(r['total_ms']) / base:.2f}", f"{float(r['coverage_error_m']):.4f}",
-             f"{float(r['rms_error_rel']):.3f}") for r in rows]
+             f"{float(r['total_ms']) / base:.2f}", f"{float(r['whole_cycle_ms']):.2f}",
+             f"{float(r['coverage_error_m']):.4f}", f"{float(r['rms_error_rel']):.3f}",
+             f"{float(r['speed_after_mps']):.3f}", f"{float(r['deepest_m']):.4f}",
+             f"{float(r['mean_depth_m']):.5f}") for r in rows]
     text += table(["level", "contacts", "detection ms", "response ms", "total ms", "total / baseline",
-                   "coverage error m", "RMS error / diameter"], body)
+                   "whole cycle ms", "coverage error m", "RMS error / diameter",
+                   "mean point speed after, m/s", "deepest m", "mean depth m"], body)
     write(results, "s2.md", text)
 
     total = [float(r["total_ms"]) for r in rows]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    whole = [float(r["whole_cycle_ms"]) for r in rows]
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
     for ax, column, label in ((axes[0], "coverage_error_m", "contact coverage error, m"),
-                              (axes[1], "rms_error_rel", f"RMS deviation after {state['cycles_per_level']} cycles / diameter")):
+                              (axes[1], "rms_error_rel", f"RMS deviation after {state['cycles_per_level']} cycles / diameter"),
+                              (axes[2], "deepest_m", "deepest point pair inside half the contact distance, m")):
         values = [float(r[column]) for r in rows]
-        ax.plot(total, values, marker="o")
+        ax.plot(total, values, marker="o", label="detection + response")
+        ax.plot(whole, values, marker="x", linestyle="--", label="whole cycle")
         for r, x, y in zip(rows, total, values):
             ax.annotate(r["level"], (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
-        ax.set_xlabel("detection + response, ms per cycle")
+        ax.legend(fontsize=8)
+        ax.set_xlabel("ms per cycle")
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
     fig.suptitle("S2: error against the finest level, one point per level")
