@@ -214,7 +214,7 @@ INSTANTIATE_TEST_SUITE_P(SetupsFloorsAndSteps, StabilityTest,
                                                              Setup::kThrown})),
                          [](const auto& info) { return caseName(info.param); });
 
-// Known to fail (issue 26, item 1, open): in 38 of these 44 stacks a box enters the floor or
+// Known to fail (issue 26, item 1, open): in 26 of these 44 stacks a box enters the floor or
 // the box below, mostly in the first cycles. Run with --gtest_also_run_disabled_tests.
 INSTANTIATE_TEST_SUITE_P(DISABLED_Stacks, StabilityTest,
                          ::testing::ValuesIn(stabilityCases({Setup::kStacked})),
