@@ -339,6 +339,53 @@ void readObjects(ParamReader& read, NodeConfig& config) {
   }
 }
 
+/// cycle_on and cycle_on_all; cycle_on_all only where clouds start the cycles.
+void readCycleOn(ParamReader& read, NodeConfig& config) {
+  const std::string cycle_on = read.text("cycle_on", toString(config.cycle_on));
+  const auto parsed = parseEnum(kCycleOnNames, cycle_on);
+  if (!parsed) {
+    ParamReader::fail("cycle_on", "= '" + cycle_on + "' must be " + enumNameList(kCycleOnNames));
+  }
+  config.cycle_on = *parsed;
+  config.cycle_on_all = read.flag("cycle_on_all", config.cycle_on_all);
+  if (config.cycle_on_all && config.cycle_on != CycleOn::kClouds) {
+    ParamReader::fail("cycle_on_all", "is read only with cycle_on: clouds");
+  }
+}
+
+/// dt_s: seconds per cycle, or `stamp` with cycle_on: clouds (the clouds' stamps time the
+/// cycles); read after rate_hz and cycle_on.
+void readStep(ParamReader& read, NodeConfig& config, std::vector<std::string>& warnings) {
+  const std::string key = read.renamed("dt_s", "dt", warnings);
+  const XmlRpcValue* value = read.find(key);
+  if (value == nullptr || value->getType() != XmlRpcValue::TypeString) {
+    config.scene.dt_s = read.number(key, config.scene.dt_s, 0.0, 0.1, true);
+    return;
+  }
+  const std::string text = static_cast<std::string>(*value);
+  if (text != "stamp") {
+    ParamReader::fail(read.name(key), "= '" + text + "' must be a number in (0, 0.1] or 'stamp'");
+  }
+  if (config.cycle_on != CycleOn::kClouds) {
+    ParamReader::fail(read.name(key), "= 'stamp' needs cycle_on: clouds (the clouds' stamps time the cycles)");
+  }
+  config.dt_from_stamps = true;
+  config.scene.dt_s = std::min(1.0 / config.rate_hz, 0.1);
+}
+
+/// Clouds start cycles only if some object's clouds are read every time: a tracked or
+/// registered one.
+void checkCloudsStartCycles(const NodeConfig& config) {
+  if (config.cycle_on != CycleOn::kClouds) return;
+  const bool any = std::any_of(config.objects.begin(), config.objects.end(), [](const ObjectParams& o) {
+    return followsClouds(o.on_cloud);
+  });
+  if (!any) {
+    ParamReader::fail("cycle_on", "= 'clouds' needs an object with on_cloud: track or register, "
+                                  "whose clouds start the cycles");
+  }
+}
+
 }  // namespace
 
 NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::string>& warnings) {
@@ -350,6 +397,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
     ParamReader::fail("fixed_frame", "= '" + config.fixed_frame + "' starts with '/', which tf2 refuses");
   }
   config.rate_hz = read.number("rate_hz", config.rate_hz, 0.0, 10000.0, true);
+  readCycleOn(read, config);
   config.max_points_per_object = static_cast<std::size_t>(read.integer(
       "max_points_per_object", static_cast<long>(config.max_points_per_object), 1,
       std::numeric_limits<int>::max()));
@@ -357,7 +405,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   config.tf_wait_s = read.number("tf_wait_s", config.tf_wait_s, 0.0, 60.0);
   config.max_coordinate_m = read.number("max_coordinate_m", config.max_coordinate_m, 0.0, 1e12, true);
   SceneConfig& scene = config.scene;
-  scene.dt_s = read.number(read.renamed("dt_s", "dt", warnings), scene.dt_s, 0.0, 0.1, true);
+  readStep(read, config, warnings);
   scene.gravity_mps2 =
       read.vector3(read.renamed("gravity_mps2", "gravity", warnings), scene.gravity_mps2);
   scene.level = static_cast<int>(read.integer("level", scene.level, -1, 255));
@@ -382,6 +430,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   }
 
   readObjects(read, config);
+  checkCloudsStartCycles(config);
   read.finish();
   return config;
 }

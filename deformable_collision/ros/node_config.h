@@ -31,6 +31,15 @@ inline std::optional<OnCloud> parseOnCloud(const std::string& name) {
 }
 inline const char* toString(OnCloud on_cloud) { return enumName(kOnCloudNames, on_cloud); }
 
+/// What starts a cycle: the timer at rate_hz, or a new cloud of a tracked or registered object
+/// (at most at rate_hz).
+enum class CycleOn { kTimer, kClouds };
+
+inline constexpr EnumNames<CycleOn, 2> kCycleOnNames{{{CycleOn::kTimer, "timer"},
+                                                     {CycleOn::kClouds, "clouds"}}};
+
+inline const char* toString(CycleOn cycle_on) { return enumName(kCycleOnNames, cycle_on); }
+
 /// One entry of the `objects` parameter.
 struct ObjectParams {
   std::string topic;          ///< PointCloud2 input, resolved in the node's namespace.
@@ -49,7 +58,16 @@ struct ObjectParams {
 /// Every parameter of the node, in SI units, validated.
 struct NodeConfig {
   std::string fixed_frame = "world";
+  /// Cycles per second (kTimer), or at most that many (kClouds).
   double rate_hz = 100.0;
+  CycleOn cycle_on = CycleOn::kTimer;
+  /// kClouds: a cycle waits until every tracked or registered object has a cloud newer than
+  /// the last cycle, instead of starting on the first one.
+  bool cycle_on_all = false;
+  /// `dt_s: stamp` (kClouds only): each cycle steps by the time between the stamps of the
+  /// clouds that started it and the last cycle's, clamped to at most 0.1 s; the first cycle,
+  /// and one whose stamps did not advance, step scene.dt_s (1 / rate_hz, at most 0.1 s).
+  bool dt_from_stamps = false;
   std::size_t max_points_per_object = 1000000;
   /// How long a cloud waits for the transform of its stamp (a sensor's pose published late)
   /// before it is dropped with a warning. A cloud in a frame tf does not know at all is

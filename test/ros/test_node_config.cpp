@@ -183,8 +183,34 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"ZeroModelPoints", [](XmlRpcValue& p) { p["register"]["max_model_points"] = 0; }, "register.max_model_points = 0 must be in [1, "},
         BadParamCase{"NegativeMatchRatio", [](XmlRpcValue& p) { p["register"]["min_match_ratio"] = -0.1; }, "register.min_match_ratio = -0.1 must be in [0, 1]"},
         BadParamCase{"MatchRatioAboveOne", [](XmlRpcValue& p) { p["register"]["min_match_ratio"] = 1.5; }, "register.min_match_ratio = 1.5 must be in [0, 1]"},
-        BadParamCase{"MisspeltRegister", [](XmlRpcValue& p) { p["register"]["iteration"] = 3; }, "register.iteration is not a known parameter"}),
+        BadParamCase{"MisspeltRegister", [](XmlRpcValue& p) { p["register"]["iteration"] = 3; }, "register.iteration is not a known parameter"},
+        BadParamCase{"UnknownCycleOn", [](XmlRpcValue& p) { p["cycle_on"] = "sometimes"; }, "cycle_on = 'sometimes' must be timer or clouds"},
+        BadParamCase{"CycleOnAllWithTimer", [](XmlRpcValue& p) { p["cycle_on_all"] = true; }, "cycle_on_all is read only with cycle_on: clouds"},
+        BadParamCase{"CycleOnAllAsString", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["cycle_on_all"] = "yes"; }, "cycle_on_all must be true or false"},
+        BadParamCase{"StepFromStampsWithTimer", [](XmlRpcValue& p) { p["dt_s"] = "stamp"; }, "dt_s = 'stamp' needs cycle_on: clouds"},
+        BadParamCase{"StepAsAnotherWord", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["dt_s"] = "fast"; }, "dt_s = 'fast' must be a number in (0, 0.1] or 'stamp'"},
+        BadParamCase{"CloudsWithoutTrackedObject", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["objects"][3]["on_cloud"] = "ignore"; }, "cycle_on = 'clouds' needs an object with on_cloud: track or register"}),
     [](const auto& info) { return info.param.name; });
+
+TEST(NodeConfig, CyclesFollowTheTimerUnlessCloudsStartThem) {
+  const NodeConfig timer = parseWithoutWarnings(validParams());
+  EXPECT_EQ(timer.cycle_on, CycleOn::kTimer);
+  EXPECT_FALSE(timer.cycle_on_all);
+  EXPECT_FALSE(timer.dt_from_stamps);
+
+  XmlRpcValue params = validParams();
+  params["cycle_on"] = "clouds";
+  params["cycle_on_all"] = true;
+  params["dt_s"] = "stamp";
+  const NodeConfig clouds = parseWithoutWarnings(params);
+  EXPECT_EQ(clouds.cycle_on, CycleOn::kClouds);
+  EXPECT_TRUE(clouds.cycle_on_all);
+  EXPECT_TRUE(clouds.dt_from_stamps);
+  EXPECT_DOUBLE_EQ(clouds.scene.dt_s, 1.0 / 50.0);  // the first cycle's: 1 / rate_hz
+
+  params["rate_hz"] = 5;
+  EXPECT_DOUBLE_EQ(parseWithoutWarnings(params).scene.dt_s, 0.1);  // at most 0.1 s
+}
 
 /// A copy of a dictionary without `key` (XmlRpcValue cannot erase a member).
 XmlRpcValue without(const XmlRpcValue& dictionary, const std::string& key) {
