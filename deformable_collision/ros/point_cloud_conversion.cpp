@@ -125,6 +125,9 @@ CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinite
   result.error = findCoordinateFields(cloud, fields);
   if (result.error.empty()) result.error = checkCloudSize(cloud, max_points);
   if (!result.ok()) return result;
+  for (const CoordinateField& field : fields) {
+    if (field.datatype == sensor_msgs::PointField::FLOAT64) result.datatype = field.datatype;
+  }
   points.clear();
   // Rows of no points may still be many, over no data at all.
   if (static_cast<std::uint64_t>(cloud.width) * cloud.height == 0) return result;
@@ -132,31 +135,37 @@ CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinite
   return result;
 }
 
-void writeCloudPoints(const std::vector<Eigen::Vector3d>& points, sensor_msgs::PointCloud2& cloud) {
-  constexpr std::uint32_t kPointStep = 3 * sizeof(float);
-  if (cloud.fields.size() != 3) {
+void writeCloudPoints(const std::vector<Eigen::Vector3d>& points, sensor_msgs::PointCloud2& cloud,
+                      std::uint8_t datatype) {
+  if (datatype != sensor_msgs::PointField::FLOAT64) datatype = sensor_msgs::PointField::FLOAT32;
+  const std::uint32_t size = byteSize(datatype);
+  if (cloud.fields.size() != 3 || cloud.fields[0].datatype != datatype) {
     cloud.fields.resize(3);
     const char* names[3] = {"x", "y", "z"};
     for (std::uint32_t axis = 0; axis < 3; ++axis) {
       cloud.fields[axis].name = names[axis];
-      cloud.fields[axis].offset = axis * sizeof(float);
-      cloud.fields[axis].datatype = sensor_msgs::PointField::FLOAT32;
+      cloud.fields[axis].offset = axis * size;
+      cloud.fields[axis].datatype = datatype;
       cloud.fields[axis].count = 1;
     }
   }
   cloud.height = 1;
   cloud.width = static_cast<std::uint32_t>(points.size());
-  cloud.point_step = kPointStep;
-  cloud.row_step = kPointStep * cloud.width;
+  cloud.point_step = 3 * size;
+  cloud.row_step = cloud.point_step * cloud.width;
   cloud.is_bigendian = hostIsBigEndian();
   cloud.is_dense = true;
   cloud.data.resize(cloud.row_step);
   std::uint8_t* out = cloud.data.data();
   for (const auto& p : points) {
-    const float xyz[3] = {static_cast<float>(p.x()), static_cast<float>(p.y()),
-                          static_cast<float>(p.z())};
-    std::memcpy(out, xyz, kPointStep);
-    out += kPointStep;
+    if (datatype == sensor_msgs::PointField::FLOAT64) {
+      std::memcpy(out, p.data(), cloud.point_step);
+    } else {
+      const float xyz[3] = {static_cast<float>(p.x()), static_cast<float>(p.y()),
+                            static_cast<float>(p.z())};
+      std::memcpy(out, xyz, cloud.point_step);
+    }
+    out += cloud.point_step;
   }
 }
 

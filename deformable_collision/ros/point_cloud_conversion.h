@@ -4,6 +4,7 @@
 #include <sensor_msgs/PointCloud2.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,9 @@ enum class NonFinitePoints {
 struct CloudReadResult {
   std::string error;           ///< Empty when the cloud was read; otherwise what is wrong.
   std::size_t non_finite = 0;  ///< Points with a non-finite coordinate.
+  /// FLOAT64 when any of x, y, z is, else FLOAT32: the precision an output of these points
+  /// keeps (writeCloudPoints).
+  std::uint8_t datatype = sensor_msgs::PointField::FLOAT32;
   bool ok() const { return error.empty(); }
 };
 
@@ -28,8 +32,11 @@ struct CloudReadResult {
 CloudReadResult readCloudPoints(const sensor_msgs::PointCloud2& cloud, NonFinitePoints policy,
                                 std::size_t max_points, std::vector<Eigen::Vector3d>& points);
 
-/// Writes `points` as an unorganized FLOAT32 x y z cloud. The message's buffers are reused
-/// when the point count is unchanged, so a steady publisher allocates nothing.
-void writeCloudPoints(const std::vector<Eigen::Vector3d>& points, sensor_msgs::PointCloud2& cloud);
+/// Writes `points` as an unorganized x y z cloud of `datatype`, FLOAT32 or FLOAT64 (which
+/// keeps a double's every bit: FLOAT32 rounds to 8 mm at 1e5 m from the origin). The
+/// message's buffers are reused when the point count is unchanged, so a steady publisher
+/// allocates nothing.
+void writeCloudPoints(const std::vector<Eigen::Vector3d>& points, sensor_msgs::PointCloud2& cloud,
+                      std::uint8_t datatype = sensor_msgs::PointField::FLOAT32);
 
 }  // namespace deformable_collision

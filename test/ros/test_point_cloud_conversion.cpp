@@ -207,5 +207,46 @@ TEST(WriteCloud, RoundTripsAndReusesItsBuffer) {
   EXPECT_EQ(cloud.data.data(), buffer);
 }
 
+TEST(WriteCloud, Float64KeepsEveryBitFarFromTheOriginWhereFloat32Rounds) {
+  std::vector<Eigen::Vector3d> far;
+  for (const auto& p : kPoints) far.push_back(p + Eigen::Vector3d(1e5 + 0.0037, -2e5 + 0.0041, 3e4 + 0.0013));
+  PointCloud2 cloud;
+  writeCloudPoints(far, cloud, PointField::FLOAT64);
+  ASSERT_EQ(cloud.fields.size(), 3u);
+  EXPECT_EQ(cloud.fields[2].datatype, PointField::FLOAT64);
+  EXPECT_EQ(cloud.fields[2].offset, 16u);
+  EXPECT_EQ(cloud.point_step, 24u);
+  std::vector<Eigen::Vector3d> points;
+  const CloudReadResult read = readCloudPoints(cloud, NonFinitePoints::kDrop, 1000, points);
+  ASSERT_TRUE(read.ok()) << read.error;
+  EXPECT_EQ(read.datatype, PointField::FLOAT64);
+  EXPECT_EQ(points, far);
+
+  writeCloudPoints(far, cloud);  // back to FLOAT32: the fields follow
+  EXPECT_EQ(cloud.fields[2].datatype, PointField::FLOAT32);
+  EXPECT_EQ(cloud.point_step, 12u);
+  const CloudReadResult rounded = readCloudPoints(cloud, NonFinitePoints::kDrop, 1000, points);
+  ASSERT_TRUE(rounded.ok()) << rounded.error;
+  EXPECT_EQ(rounded.datatype, PointField::FLOAT32);
+  double largest_error_m = 0.0;
+  for (std::size_t i = 0; i < far.size(); ++i) {
+    largest_error_m = std::max(largest_error_m, (points[i] - far[i]).norm());
+  }
+  EXPECT_GT(largest_error_m, 1e-3) << "float32 values near 2e5 m are 16 mm apart";
+}
+
+TEST(ReadCloud, ACloudWithOneFloat64CoordinateIsFloat64) {
+  PointCloud2 cloud;
+  writeCloudPoints(kPoints, cloud);
+  cloud.fields[1].datatype = PointField::FLOAT64;
+  cloud.point_step = 16;
+  cloud.row_step = cloud.point_step * cloud.width;
+  cloud.data.resize(cloud.row_step);
+  std::vector<Eigen::Vector3d> points;
+  const CloudReadResult read = readCloudPoints(cloud, NonFinitePoints::kDrop, 1000, points);
+  ASSERT_TRUE(read.ok()) << read.error;
+  EXPECT_EQ(read.datatype, PointField::FLOAT64);
+}
+
 }  // namespace
 }  // namespace deformable_collision
