@@ -219,6 +219,13 @@ void Scene::setLevel(int level) {
   config_.level = level;
 }
 
+void Scene::setTimeStep(double dt_s) {
+  if (!(dt_s > 0.0 && dt_s <= 0.1)) {
+    throw std::invalid_argument("time step dt_s = " + std::to_string(dt_s) + " must be in (0, 0.1]");
+  }
+  config_.dt_s = dt_s;
+}
+
 int Scene::level() const {
   return config_.level < 0 ? maxLevel() : std::min(config_.level, maxLevel());
 }

@@ -127,6 +127,9 @@ class Scene {
   /// SceneConfig, and stays the finest when deeper objects come.
   /// @throw std::out_of_range if level is not -1 or in [0, maxLevel()].
   void setLevel(int level);
+  /// Changes the step of the next cycles (a node whose clouds' stamps time its cycles).
+  /// @throw std::invalid_argument unless dt_s is in (0, 0.1].
+  void setTimeStep(double dt_s);
   /// The level in force: the configured one, or maxLevel() for "finest".
   int level() const;
   /// The finest level over all objects (the leaves).

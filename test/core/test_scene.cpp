@@ -485,6 +485,25 @@ TEST(Scene, LevelMinusOneStaysTheFinestWhenDeeperObjectsCome) {
   EXPECT_EQ(fixed.level(), shallow) << "a level set by number stays";
 }
 
+TEST(Scene, ASetTimeStepStepsLikeAConfiguredOne) {
+  ObjectConfig box;
+  box.name = "box";
+  const Points points = sampleBox(200, Eigen::Vector3d(0.05, 0.05, 0.05), 3);
+  SceneConfig long_steps;
+  long_steps.dt_s = 0.02;
+  Scene configured(long_steps), changed{SceneConfig{}};
+  for (Scene* scene : {&configured, &changed}) scene->addObject(box, points);
+  changed.setTimeStep(0.02);
+  EXPECT_EQ(changed.config().dt_s, 0.02);
+  configured.cycle();
+  changed.cycle();
+  EXPECT_EQ(configured.body(0).positions(), changed.body(0).positions());
+  for (double bad : {0.0, -0.01, 0.2, std::numeric_limits<double>::quiet_NaN()}) {
+    EXPECT_THROW(changed.setTimeStep(bad), std::invalid_argument) << bad;
+  }
+  EXPECT_EQ(changed.config().dt_s, 0.02) << "a refused step changes nothing";
+}
+
 // ---------------------------------------------------------------------------------------
 // Bad input: an exception that names the bad value.
 
