@@ -1,0 +1,53 @@
+#include "deformable_collision/ros/cloud_handoff.h"
+
+#include <algorithm>
+#include <utility>
+
+namespace deformable_collision {
+
+CloudHandoff::CloudHandoff(std::vector<bool> starts_cycle)
+    : waiting_(starts_cycle.size()),
+      is_waiting_(starts_cycle.size(), false),
+      starts_cycle_(std::move(starts_cycle)),
+      objects_starting_cycles_(
+          static_cast<std::size_t>(std::count(starts_cycle_.begin(), starts_cycle_.end(), true))) {
+  // Each object waits at most once: the list never grows past this.
+  waiting_objects_.reserve(starts_cycle_.size());
+}
+
+void CloudHandoff::put(std::size_t object, ReadCloud& cloud) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::swap(waiting_.at(object), cloud);
+  if (is_waiting_[object]) {
+    ++coalesced_;
+    return;
+  }
+  is_waiting_[object] = true;
+  waiting_objects_.push_back(object);
+  if (starts_cycle_[object]) ++waiting_starting_cycles_;
+}
+
+bool CloudHandoff::ready(bool all) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return all ? objects_starting_cycles_ > 0 && waiting_starting_cycles_ == objects_starting_cycles_
+             : waiting_starting_cycles_ > 0;
+}
+
+void CloudHandoff::take(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects) {
+  objects.clear();
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (const std::size_t object : waiting_objects_) {
+    std::swap(waiting_[object], taken.at(object));
+    is_waiting_[object] = false;
+    objects.push_back(object);
+  }
+  waiting_objects_.clear();
+  waiting_starting_cycles_ = 0;
+}
+
+std::uint64_t CloudHandoff::coalesced() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return coalesced_;
+}
+
+}  // namespace deformable_collision

@@ -1,0 +1,59 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <ros/time.h>
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <vector>
+
+namespace deformable_collision {
+
+/// One object's cloud as the reader read it: its points, transformed and checked, and what
+/// the cycle needs to know of it.
+struct ReadCloud {
+  std::vector<Eigen::Vector3d> points;
+  /// The sensor's origin in the target frame, for a cloud in a frame of its own (a camera's).
+  std::optional<Eigen::Vector3d> viewpoint;
+  ros::Time stamp;
+  std::chrono::steady_clock::time_point arrival;
+  bool float64 = false;  ///< Any coordinate was FLOAT64: the object's outputs keep that precision.
+};
+
+/// The newest read cloud of each object, passed from the thread that reads clouds to the
+/// thread that cycles by swapping buffers under one mutex: no point is copied, and once each
+/// object's three buffers (being read, waiting, taken) have grown to its clouds nothing is
+/// allocated. A cloud not yet taken when a newer one of its object comes is replaced and
+/// counted as coalesced, so at most one cloud per object ever waits.
+class CloudHandoff {
+ public:
+  /// `starts_cycle[i]`: whether object i's clouds count for ready().
+  explicit CloudHandoff(std::vector<bool> starts_cycle);
+
+  /// Reader: makes `cloud` object's waiting cloud; `cloud` gets back a buffer to read the
+  /// next one into (its contents are stale).
+  void put(std::size_t object, ReadCloud& cloud);
+  /// Whether a cloud of an object that starts cycles waits; with `all`, one of every such
+  /// object.
+  bool ready(bool all) const;
+  /// Cycle: swaps each waiting cloud into taken[object] and lists those objects in
+  /// `objects` (whose capacity is reused), in the order their clouds came.
+  void take(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
+  /// Clouds replaced before they were taken, since construction.
+  std::uint64_t coalesced() const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<ReadCloud> waiting_;
+  std::vector<bool> is_waiting_;
+  std::vector<std::size_t> waiting_objects_;
+  const std::vector<bool> starts_cycle_;
+  std::size_t objects_starting_cycles_ = 0;
+  std::size_t waiting_starting_cycles_ = 0;
+  std::uint64_t coalesced_ = 0;
+};
+
+}  // namespace deformable_collision

@@ -1,0 +1,153 @@
+#include "deformable_collision/ros/cloud_handoff.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <set>
+#include <thread>
+
+#include "deformable_collision/core/scene.h"
+#include "deformable_collision/ros/point_cloud_conversion.h"
+#include "deformable_collision/scenes/shapes.h"
+
+namespace deformable_collision {
+namespace {
+
+using Points = std::vector<Eigen::Vector3d>;
+
+/// A cloud of `count` points whose first x is `sequence`, so that the taker can tell which it got.
+ReadCloud numbered(std::size_t count, double sequence) {
+  ReadCloud cloud;
+  cloud.points.assign(count, Eigen::Vector3d::Zero());
+  cloud.points[0].x() = sequence;
+  return cloud;
+}
+
+TEST(CloudHandoff, PassesTheBufferItselfNotACopy) {
+  CloudHandoff handoff({true});
+  ReadCloud read = numbered(10, 1.0);
+  const Eigen::Vector3d* data = read.points.data();
+  read.stamp = ros::Time(12.5);
+  handoff.put(0, read);
+  std::vector<ReadCloud> taken(1);
+  std::vector<std::size_t> objects;
+  handoff.take(taken, objects);
+  ASSERT_EQ(objects, std::vector<std::size_t>{0});
+  EXPECT_EQ(taken[0].points.data(), data);
+  EXPECT_EQ(taken[0].stamp, ros::Time(12.5));
+  EXPECT_EQ(handoff.coalesced(), 0u);
+}
+
+TEST(CloudHandoff, ANewerCloudReplacesOneNotYetTaken) {
+  CloudHandoff handoff({true, false});
+  for (double sequence : {1.0, 2.0, 3.0}) {
+    ReadCloud read = numbered(4, sequence);
+    handoff.put(0, read);
+  }
+  ReadCloud other = numbered(4, 7.0);
+  handoff.put(1, other);
+  std::vector<ReadCloud> taken(2);
+  std::vector<std::size_t> objects;
+  handoff.take(taken, objects);
+  EXPECT_EQ(objects, (std::vector<std::size_t>{0, 1}));
+  EXPECT_EQ(taken[0].points[0].x(), 3.0);
+  EXPECT_EQ(taken[1].points[0].x(), 7.0);
+  EXPECT_EQ(handoff.coalesced(), 2u);
+  handoff.take(taken, objects);
+  EXPECT_TRUE(objects.empty()) << "each cloud is taken once";
+}
+
+TEST(CloudHandoff, ReadyWhenOneOrEveryObjectThatStartsCyclesHasACloud) {
+  CloudHandoff handoff({true, false, true});
+  ReadCloud read = numbered(1, 0.0);
+  EXPECT_FALSE(handoff.ready(false));
+  handoff.put(1, read);
+  EXPECT_FALSE(handoff.ready(false)) << "object 1 does not start cycles";
+  handoff.put(0, read);
+  EXPECT_TRUE(handoff.ready(false));
+  EXPECT_FALSE(handoff.ready(true));
+  handoff.put(0, read);
+  EXPECT_FALSE(handoff.ready(true)) << "a second cloud of the same object is not another object's";
+  handoff.put(2, read);
+  EXPECT_TRUE(handoff.ready(true));
+  std::vector<ReadCloud> taken(3);
+  std::vector<std::size_t> objects;
+  handoff.take(taken, objects);
+  EXPECT_FALSE(handoff.ready(false));
+  EXPECT_FALSE(CloudHandoff({false}).ready(true)) << "no object starts cycles";
+}
+
+TEST(CloudHandoff, ThreeBuffersCirculateOnceGrown) {
+  CloudHandoff handoff({true});
+  ReadCloud read;
+  std::vector<ReadCloud> taken(1);
+  std::vector<std::size_t> objects;
+  objects.reserve(1);
+  std::set<const Eigen::Vector3d*> buffers;
+  for (int round = 0; round < 12; ++round) {
+    read.points.resize(100);  // a reader refilling its buffer: no allocation once grown
+    if (round >= 3) buffers.insert(read.points.data());
+    handoff.put(0, read);
+    handoff.take(taken, objects);
+  }
+  EXPECT_LE(buffers.size(), 3u);
+}
+
+// The reader thread converts clouds and hands them over while the cycle thread takes them
+// and runs the scene's cycle on them, as the node does; under ThreadSanitizer (the thread
+// build of test/sanitized) any unsynchronised access between the two is reported.
+TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
+  constexpr int kClouds = 300;
+  const Points shape = sampleBox(200, Eigen::Vector3d(0.05, 0.05, 0.05), 7);
+  SceneConfig config;
+  config.contact_distance_m = 0.02;
+  Scene scene(config);
+  ObjectConfig tracked;
+  tracked.name = "tracked";
+  tracked.kind = ObjectKind::kTracked;
+  const std::size_t object = scene.addObject(tracked, shape);
+
+  CloudHandoff handoff({true});
+  std::atomic<bool> reading{true};
+  std::thread reader([&] {
+    ReadCloud read;
+    sensor_msgs::PointCloud2 message;
+    Points moved = shape;
+    for (int sequence = 1; sequence <= kClouds; ++sequence) {
+      for (std::size_t i = 0; i < shape.size(); ++i) moved[i] = shape[i] + Eigen::Vector3d(1e-4 * sequence, 0, 0);
+      writeCloudPoints(moved, message, sensor_msgs::PointField::FLOAT64);
+      if (!readCloudPoints(message, NonFinitePoints::kKeepAsNaN, 1000, read.points).ok()) {
+        ADD_FAILURE() << "cloud " << sequence << " not read";
+      }
+      read.stamp = ros::Time(sequence);
+      handoff.put(0, read);
+    }
+    reading = false;
+  });
+
+  std::vector<ReadCloud> taken(1);
+  std::vector<std::size_t> objects;
+  objects.reserve(1);
+  int cycles = 0;
+  double last_stamp = 0.0;
+  for (;;) {
+    const bool done = !reading;  // read before the take: then the last cloud is in it
+    handoff.take(taken, objects);
+    if (!objects.empty()) {
+      EXPECT_GT(taken[0].stamp.toSec(), last_stamp) << "clouds come newest last";
+      last_stamp = taken[0].stamp.toSec();
+      scene.observe(object, taken[0].points);
+      scene.cycle();
+      ++cycles;
+    }
+    if (done && objects.empty()) break;
+    std::this_thread::yield();
+  }
+  reader.join();
+  EXPECT_EQ(last_stamp, kClouds) << "the newest cloud is always taken";
+  EXPECT_EQ(cycles + handoff.coalesced(), static_cast<std::uint64_t>(kClouds));
+  EXPECT_NEAR(scene.body(object).positions()[0].x(), shape[0].x() + 1e-4 * kClouds, 1e-9);
+}
+
+}  // namespace
+}  // namespace deformable_collision
