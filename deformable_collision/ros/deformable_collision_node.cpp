@@ -7,20 +7,19 @@
 
 #include "deformable_collision/core/point_spacing.h"
 #include "deformable_collision/ros/cloud_transform.h"
-#include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace deformable_collision {
 namespace {
 
-/// At most one report per problem (per object, for dropped clouds) in this period.
-constexpr std::chrono::seconds kReportPeriod(5);
-constexpr double kThrottlePeriodS = std::chrono::duration<double>(kReportPeriod).count();
-/// Per object: enough for a sensor at 30 Hz whose tf lags by a few frames.
-constexpr std::size_t kMaxAwaitingClouds = 8;
-/// The listener's subscriptions to /tf and /tf_static are made when the node starts, and on
-/// a loaded machine their first transforms can take about this long: before, no frame is
-/// known, and an unknown frame only means that tf has not filled yet.
-constexpr double kTfFillMinimumS = 1.0;
+/// At most one report per problem in this period.
+constexpr double kThrottlePeriodS = 5.0;
+/// The latency figures of ~stats summarise periods at least this long.
+constexpr std::chrono::seconds kLatencyPeriod(1);
+/// dt_s: stamp: the longest step, the top of dt_s's range.
+constexpr double kLargestStepS = 0.1;
+/// The cycle thread's wait when nothing is due; a wake-up (a cloud, a service call, the
+/// timer, the destructor) ends it sooner.
+constexpr std::chrono::milliseconds kIdleWait(100);
 
 NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   XmlRpc::XmlRpcValue params;
@@ -39,6 +38,22 @@ double millisecondsBetween(std::chrono::steady_clock::time_point from,
   return std::chrono::duration<double, std::milli>(to - from).count();
 }
 
+/// Queued on the cycle's queue to end its wait; the cycle then looks at what came.
+class WakeUp : public ros::CallbackInterface {
+ public:
+  CallResult call() override { return Success; }
+};
+
+/// Per object, whether its clouds start cycles (cycle_on: clouds): the tracked and
+/// registered ones', read every time.
+std::vector<bool> cloudsStartingCycles(const NodeConfig& config) {
+  std::vector<bool> starting;
+  for (const ObjectParams& object : config.objects) {
+    starting.push_back(object.object.kind == ObjectKind::kTracked);
+  }
+  return starting;
+}
+
 }  // namespace
 
 DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
@@ -48,214 +63,123 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
       config_(loadConfig(private_handle)),
       started_(Clock::now()),
       scene_(config_.scene),
-      tf_listener_(tf_buffer_, node_handle) {
+      slots_(config_.objects.size()),
+      readers_(config_.objects.size()),
+      handoff_(cloudsStartingCycles(config_)),
+      tf_listener_(tf_buffer_, node_handle),
+      wake_(boost::make_shared<WakeUp>()),
+      taken_(config_.objects.size()),
+      cycle_period_(std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(1.0 / config_.rate_hz))),
+      cycle_wait_(kIdleWait),
+      latency_period_start_(Clock::now()),
+      reader_spinner_(1, &reader_queue_) {
+  for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
+  taken_slots_.reserve(slots_.size());
+  applied_slots_.reserve(slots_.size());
   contacts_publisher_ = private_handle_.advertise<ContactArray>("contacts", 10);
   hierarchy_publisher_ = private_handle_.advertise<visualization_msgs::MarkerArray>("hierarchy", 1);
   stats_publisher_ = private_handle_.advertise<Stats>("stats", 10);
-  slots_.resize(config_.objects.size());
-  for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
   loadModels();
+  models_waiting_ = std::any_of(slots_.begin(), slots_.end(),
+                                [](const ObjectSlot& slot) { return !slot.model_points.empty(); });
+
+  ros::NodeHandle reader_handle(node_handle_);
+  reader_handle.setCallbackQueue(&reader_queue_);
+  ros::NodeHandle cycle_handle(node_handle_);
+  cycle_handle.setCallbackQueue(&cycle_queue_);
+  ros::NodeHandle cycle_private_handle(private_handle_);
+  cycle_private_handle.setCallbackQueue(&cycle_queue_);
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     ObjectSlot& slot = slots_[i];
     named_objects_.push_back({slot.params.object.name, std::nullopt});
     slot.deformed = private_handle_.advertise<sensor_msgs::PointCloud2>(
         "deformed/" + slot.params.object.name, 1);
-    slot.subscriber = node_handle_.subscribe<sensor_msgs::PointCloud2>(
+    // A ConstPtr callback: a cloud published in this process (a driver's nodelet in the
+    // same manager) arrives as the publisher's shared pointer, never serialised.
+    slot.subscriber = reader_handle.subscribe<sensor_msgs::PointCloud2>(
         slot.params.topic, 2,
         boost::bind(&DeformableCollisionNode::onCloud, this, boost::placeholders::_1, i),
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
   }
-  set_level_service_ =
-      private_handle_.advertiseService("set_level", &DeformableCollisionNode::onSetLevel, this);
-  get_contacts_service_ =
-      private_handle_.advertiseService("get_contacts", &DeformableCollisionNode::onGetContacts, this);
-  timer_ = node_handle_.createTimer(ros::Duration(1.0 / config_.rate_hz),
-                                    &DeformableCollisionNode::onTimer, this);
-  ROS_INFO("deformable_collision: %zu objects, %.1f Hz, dt %.4f s, contact distance %.4f m, "
-           "fixed frame '%s'",
-           slots_.size(), config_.rate_hz, config_.scene.dt_s, config_.scene.contact_distance_m,
-           config_.fixed_frame.c_str());
+  retry_timer_ = reader_handle.createWallTimer(
+      ros::WallDuration(1.0 / config_.rate_hz),
+      [this](const ros::WallTimerEvent&) { retryAwaitingClouds(); });
+  set_level_service_ = cycle_private_handle.advertiseService(
+      "set_level", &DeformableCollisionNode::onSetLevel, this);
+  get_contacts_service_ = cycle_private_handle.advertiseService(
+      "get_contacts", &DeformableCollisionNode::onGetContacts, this);
+  if (config_.cycle_on == CycleOn::kTimer) {
+    timer_ = cycle_handle.createTimer(ros::Duration(1.0 / config_.rate_hz),
+                                      &DeformableCollisionNode::onTimer, this);
+  }
+  ROS_INFO("deformable_collision: %zu objects, cycles on %s%s at %s%.1f Hz, dt %s%.4f s, contact "
+           "distance %.4f m, fixed frame '%s'",
+           slots_.size(), toString(config_.cycle_on), config_.cycle_on_all ? " (all objects')" : "",
+           config_.cycle_on == CycleOn::kClouds ? "most " : "", config_.rate_hz,
+           config_.dt_from_stamps ? "from the stamps, first " : "", config_.scene.dt_s,
+           config_.scene.contact_distance_m, config_.fixed_frame.c_str());
+  reader_spinner_.start();
+  cycle_thread_ = std::thread(&DeformableCollisionNode::cycleLoop, this);
 }
 
-void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud,
-                                      std::size_t index) {
-  ObjectSlot& slot = slots_[index];
-  ++stats_message_.clouds_received;
-  const auto arrival = Clock::now();
-  // Behind older clouds that wait for their transform, in arrival order: a tracked object
-  // must not step back, and a sensor whose tf always lags keeps every cloud. A cloud in a
-  // frame tf does not know would only take the place of one that can still be placed.
-  if (!slot.awaiting_transform.empty()) {
-    const std::string problem = unknownFrameProblem(slot, cloud->header.frame_id);
-    if (!problem.empty()) {
-      dropCloud(slot, ros::console::levels::Error, problem);
-      return;
-    }
-    if (slot.awaiting_transform.size() == kMaxAwaitingClouds) {
-      slot.awaiting_transform.pop_front();
-      dropCloud(slot, ros::console::levels::Warn,
-                "more than " + std::to_string(kMaxAwaitingClouds) + " clouds wait for their transform");
-    }
-    slot.awaiting_transform.push_back({cloud, arrival});
-    retryAwaitingClouds(index, arrival);
+DeformableCollisionNode::~DeformableCollisionNode() {
+  reader_spinner_.stop();
+  stopping_ = true;
+  cycle_queue_.addCallback(wake_);
+  if (cycle_thread_.joinable()) cycle_thread_.join();
+}
+
+void DeformableCollisionNode::cycleLoop() {
+  while (!stopping_) {
+    cycle_queue_.callAvailable(ros::WallDuration(std::chrono::duration<double>(cycle_wait_).count()));
+    if (config_.cycle_on == CycleOn::kClouds && !stopping_) cycleOnClouds();
+  }
+}
+
+void DeformableCollisionNode::cycleOnClouds() {
+  wake_pending_ = false;
+  if (models_waiting_) models_waiting_ = placeModels();
+  // A model waiting for its frame is looked for at rate_hz, as the timer would.
+  cycle_wait_ = models_waiting_ ? cycle_period_ : Clock::duration(kIdleWait);
+  if (!handoff_.ready(config_.cycle_on_all)) return;
+  const auto now = Clock::now();
+  if (last_cycle_start_ && now < *last_cycle_start_ + cycle_period_) {
+    cycle_wait_ = *last_cycle_start_ + cycle_period_ - now;
     return;
   }
-  if (!processCloud(index, *cloud, arrival, config_.tf_wait_s == 0.0)) {
-    slot.awaiting_transform.push_back({cloud, arrival});
-  }
+  runCycleLogged();
 }
 
-bool DeformableCollisionNode::tfFilling() const {
-  // The longer of the two: a tf_wait_s above the minimum says that the transforms of this
-  // setup may lag that long, and at start-up that includes the first one naming a frame.
-  const double fill_s = std::max(config_.tf_wait_s, kTfFillMinimumS);
-  return std::chrono::duration<double>(Clock::now() - started_).count() < fill_s;
+void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
+  if (models_waiting_) models_waiting_ = placeModels();
+  runCycleLogged();
 }
 
-const std::string& DeformableCollisionNode::targetFrame(const ObjectSlot& slot) const {
-  return slot.params.object.kind == ObjectKind::kKinematic ? slot.params.follow_frame
-                                                           : config_.fixed_frame;
-}
-
-std::string DeformableCollisionNode::unknownFrameProblem(const ObjectSlot& slot,
-                                                         const std::string& frame) const {
-  if (frame.empty() || frame == targetFrame(slot) || tfFilling() || tf_buffer_._frameExists(frame)) {
-    return "";
-  }
-  return "tf knows no frame '" + frame + "', so the cloud is dropped without waiting tf_wait_s";
-}
-
-void DeformableCollisionNode::retryAwaitingClouds() {
-  const auto now = Clock::now();
-  for (std::size_t index = 0; index < slots_.size(); ++index) retryAwaitingClouds(index, now);
-}
-
-void DeformableCollisionNode::retryAwaitingClouds(std::size_t index, Clock::time_point now) {
-  auto& awaiting = slots_[index].awaiting_transform;
-  while (!awaiting.empty()) {
-    const AwaitingCloud& oldest = awaiting.front();
-    const bool last_try =
-        std::chrono::duration<double>(now - oldest.arrival).count() >= config_.tf_wait_s;
-    // tf arrives in time order: while the oldest cannot be placed, the newer wait too.
-    if (!processCloud(index, *oldest.cloud, oldest.arrival, last_try)) return;
-    awaiting.pop_front();
-  }
-}
-
-bool DeformableCollisionNode::processCloud(std::size_t index, const sensor_msgs::PointCloud2& cloud,
-                                           Clock::time_point arrival, bool last_try) {
-  // An exception leaving a callback would take the whole nodelet manager down.
+void DeformableCollisionNode::runCycleLogged() {
   try {
-    return handleCloud(cloud, index, arrival, last_try) != CloudOutcome::kAwaitingTransform;
+    runCycle();
   } catch (const std::exception& e) {
-    dropCloud(slots_[index], ros::console::levels::Error, e.what());
-    return true;
+    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cycle failed: %s", e.what());
   }
 }
 
-void DeformableCollisionNode::dropCloud(ObjectSlot& slot, ros::console::levels::Level level,
-                                        const std::string& problem) {
-  ++stats_message_.clouds_rejected;
-  ++slot.drops_unreported;
-  // Throttled per object, so that one noisy topic cannot hide another one's problems.
-  const auto now = Clock::now();
-  if (slot.last_report && now - *slot.last_report < kReportPeriod) return;
-  const std::string dropped_before =
-      slot.drops_unreported > 1
-          ? " (" + std::to_string(slot.drops_unreported - 1) + " more dropped since the last report)"
-          : "";
-  ROS_LOG(level, ROSCONSOLE_DEFAULT_NAME, "cloud on %s dropped, object '%s' unchanged: %s%s",
-          slot.subscriber.getTopic().c_str(), slot.params.object.name.c_str(), problem.c_str(),
-          dropped_before.c_str());
-  slot.last_report = now;
-  slot.drops_unreported = 0;
-}
-
-CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
-                                                        const sensor_msgs::PointCloud2& cloud) {
-  // A tracked object keeps non-finite points as unobserved slots, so that point i of every
-  // cloud is the same point even when the first cloud has holes (organized depth clouds).
-  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
-  CloudReadResult read =
-      readCloudPoints(cloud, tracked ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
-                      config_.max_points_per_object, cloud_points_);
-  if (!read.ok()) return read;
-  // A registered object's view may miss it: the registration holds the model and says so.
-  const bool registered = slot.params.on_cloud == OnCloud::kRegister && slot.index;
-  if (cloud_points_.empty() && !registered) {
-    read.error = "the cloud is empty";
-  } else if (tracked && slot.index && cloud_points_.size() != slot.tracked_cloud_size) {
-    read.error = "it has " + std::to_string(cloud_points_.size()) + " points, the first had " +
-                 std::to_string(slot.tracked_cloud_size) +
-                 " (a tracked object keeps its points; on_cloud: reset takes a new shape)";
-  }
-  return read;
-}
-
-void DeformableCollisionNode::selectTrackedPoints(const std::vector<std::uint32_t>& indices) {
-  tracked_points_.resize(indices.size());
-  for (std::size_t k = 0; k < indices.size(); ++k) tracked_points_[k] = cloud_points_[indices[k]];
-}
-
-DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
-    const sensor_msgs::PointCloud2& cloud, std::size_t index, Clock::time_point arrival,
-    bool last_try) {
-  ObjectSlot& slot = slots_[index];
-  if (const std::optional<CloudOutcome> waiting = awaitModel(slot, last_try)) return *waiting;
-  const bool first = !slot.index;
-  if (!first && slot.params.on_cloud == OnCloud::kIgnore) return CloudOutcome::kApplied;
-
-  const auto reject = [&](const std::string& problem) {
-    dropCloud(slot, ros::console::levels::Error, problem);
-    return CloudOutcome::kRejected;
-  };
-  const CloudReadResult read = readObjectCloud(slot, cloud);
-  if (!read.ok()) return reject(read.error);
-  std::string problem;
-  switch (transformPoints(slot, cloud, last_try, cloud_points_, problem)) {
-    case TransformOutcome::kDone:
-      break;
-    case TransformOutcome::kNotYet:
-      return CloudOutcome::kAwaitingTransform;
-    case TransformOutcome::kMissing:
-      dropCloud(slot, ros::console::levels::Warn, problem);
-      return CloudOutcome::kRejected;
-    case TransformOutcome::kRefused:
-      return reject(problem);
-  }
-  // Finite but absurd coordinates would be taken as the object's shape or pose.
-  problem = farCoordinateProblem(cloud_points_, config_.max_coordinate_m, targetFrame(slot));
-  if (!problem.empty()) return reject(problem);
-  // A kinematic object is placed by its frame's pose, which may come later too.
-  if (slot.params.object.kind == ObjectKind::kKinematic && !last_try &&
-      !tf_buffer_.canTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))) {
-    return CloudOutcome::kAwaitingTransform;
-  }
-  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
-  std::vector<std::uint32_t> first_finite;
-  if (tracked && first) {
-    for (std::uint32_t i = 0; i < cloud_points_.size(); ++i) {
-      if (cloud_points_[i].allFinite()) first_finite.push_back(i);
+void DeformableCollisionNode::applyTakenClouds() {
+  handoff_.take(taken_, taken_slots_);
+  applied_slots_.clear();
+  for (const std::size_t index : taken_slots_) {
+    ObjectSlot& slot = slots_[index];
+    try {
+      if (applyCloud(slot, taken_[index])) applied_slots_.push_back(index);
+    } catch (const std::exception& e) {
+      dropCloud(slot, ros::console::levels::Error, e.what());
     }
-    if (first_finite.empty()) return reject("every point is non-finite");
   }
-  if (tracked) selectTrackedPoints(first ? first_finite : slot.tracked_indices);
-  try {
-    applyCloud(slot, tracked ? tracked_points_ : cloud_points_, first);
-  } catch (const std::exception& e) {
-    return reject(e.what());
-  }
-  if (tracked && first) {
-    slot.tracked_indices = std::move(first_finite);
-    slot.tracked_cloud_size = cloud_points_.size();
-  }
-  stats_message_.non_finite_points += read.non_finite;
-  if (!slot.pending_since) slot.pending_since = arrival;
-  return CloudOutcome::kApplied;
 }
 
-void DeformableCollisionNode::applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points,
-                                         bool first) {
+bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
+  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
+  if (slot.index && slot.params.on_cloud == OnCloud::kIgnore) return false;
   std::optional<Eigen::Isometry3d> pose;
   if (slot.params.object.kind == ObjectKind::kKinematic) {
     // A kinematic rest shape lives in its frame: without that frame's pose it has no place.
@@ -264,23 +188,49 @@ void DeformableCollisionNode::applyCloud(ObjectSlot& slot, std::vector<Eigen::Ve
     pose = toIsometry(stamped.transform);
     if (!pose) throw std::invalid_argument("the pose of " + slot.params.follow_frame + " is not finite");
   }
-  if (first) {
+  if (!slot.index) {
+    if (tracked) {
+      slot.tracked_indices.clear();
+      for (std::uint32_t i = 0; i < cloud.points.size(); ++i) {
+        if (cloud.points[i].allFinite()) slot.tracked_indices.push_back(i);
+      }
+    }
+    const std::vector<Eigen::Vector3d>& points = tracked ? trackedPoints(slot, cloud.points) : cloud.points;
     slot.index = scene_.addObject(slot.params.object, points);
     ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
-             points.size(), slot.subscriber.getTopic().c_str(),
-             toString(slot.params.object.kind));
+             points.size(), slot.subscriber.getTopic().c_str(), toString(slot.params.object.kind));
     warnIfPorous(slot.params.object.name, points);
+    if (tracked) slot.tracked_cloud_size = cloud.points.size();
+    slot.exists = true;
   } else if (slot.params.on_cloud == OnCloud::kReset) {
-    scene_.resetRestShape(*slot.index, points);
+    scene_.resetRestShape(*slot.index, cloud.points);
   } else if (slot.params.on_cloud == OnCloud::kRegister) {
-    registerCloud(slot, points);
+    registerCloud(slot, cloud);
   } else {
-    scene_.observe(*slot.index, points);
+    // The reader checks the size once the first cloud is in the scene; one read before
+    // that is checked here.
+    if (cloud.points.size() != slot.tracked_cloud_size) {
+      throw std::invalid_argument(trackedSizeProblem(cloud.points.size(), slot.tracked_cloud_size));
+    }
+    scene_.observe(*slot.index, trackedPoints(slot, cloud.points));
   }
   if (pose) {
     scene_.setPose(*slot.index, *pose);
     slot.last_pose = *pose;
   }
+  slot.float64 = cloud.float64;
+  return true;
+}
+
+const std::vector<Eigen::Vector3d>& DeformableCollisionNode::trackedPoints(
+    const ObjectSlot& slot, const std::vector<Eigen::Vector3d>& cloud) {
+  // A first cloud without holes makes every later one the object's points as they are.
+  if (slot.tracked_indices.size() == cloud.size()) return cloud;
+  tracked_points_.resize(slot.tracked_indices.size());
+  for (std::size_t k = 0; k < slot.tracked_indices.size(); ++k) {
+    tracked_points_[k] = cloud[slot.tracked_indices[k]];
+  }
+  return tracked_points_;
 }
 
 void DeformableCollisionNode::warnIfPorous(const std::string& name,
@@ -294,41 +244,6 @@ void DeformableCollisionNode::warnIfPorous(const std::string& name,
              "contact_distance_m towards the spacing", name.c_str(), spacing,
              config_.scene.contact_distance_m);
   }
-}
-
-DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoints(
-    const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud, bool last_try,
-    std::vector<Eigen::Vector3d>& points, std::string& problem) {
-  const std::string& target_frame = targetFrame(slot);
-  cloud_viewpoint_.reset();
-  if (cloud.header.frame_id.empty()) {
-    problem = "header.frame_id is empty";
-    return TransformOutcome::kRefused;
-  }
-  if (cloud.header.frame_id == target_frame) return TransformOutcome::kDone;
-  const CloudTransformLookup lookup =
-      lookUpCloudTransform(tf_buffer_, target_frame, cloud.header.frame_id, cloud.header.stamp);
-  if (lookup.status == CloudTransformStatus::kUnknownFrame) {
-    problem = unknownFrameProblem(slot, cloud.header.frame_id);
-    if (!problem.empty()) return TransformOutcome::kRefused;
-  }
-  if (lookup.status != CloudTransformStatus::kFound) {
-    // The pose at the cloud's stamp may still come: a sensor's tf is often published after
-    // its data.
-    if (!last_try) return TransformOutcome::kNotYet;
-    problem = "no transform from '" + cloud.header.frame_id + "' to '" + target_frame +
-              "' within tf_wait_s = " + std::to_string(config_.tf_wait_s) + " s: " + lookup.error;
-    return TransformOutcome::kMissing;
-  }
-  const std::optional<Eigen::Isometry3d> transform = toIsometry(lookup.transform);
-  if (!transform) {
-    problem = "the transform from '" + cloud.header.frame_id + "' to '" + target_frame +
-              "' is not finite";
-    return TransformOutcome::kRefused;
-  }
-  for (auto& p : points) p = *transform * p;
-  cloud_viewpoint_ = transform->translation();
-  return TransformOutcome::kDone;
 }
 
 void DeformableCollisionNode::followFrames() {
@@ -351,26 +266,26 @@ void DeformableCollisionNode::followFrames() {
   }
 }
 
-void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
-  try {
-    placeModels();
-    retryAwaitingClouds();
-    runCycle();
-  } catch (const std::exception& e) {
-    ROS_ERROR_THROTTLE(kThrottlePeriodS, "cycle failed: %s", e.what());
-  }
-}
-
 void DeformableCollisionNode::runCycle() {
   CycleTimes times;
   times.start = Clock::now();
+  last_cycle_start_ = times.start;
+  applyTakenClouds();
+  std_msgs::Header header;
+  header.stamp = ros::Time::now();
+  header.frame_id = config_.fixed_frame;
+  if (config_.cycle_on == CycleOn::kClouds) {
+    // The outputs of a cycle that clouds started carry those clouds' time.
+    const ros::Time stamp = newestTakenStamp();
+    if (!stamp.isZero()) {
+      if (config_.dt_from_stamps) stepToStamp(stamp);
+      header.stamp = stamp;
+    }
+  }
   followFrames();
   scene_.cycle();
   times.cycled = Clock::now();
   const CycleStats& cycle = scene_.stats();
-  std_msgs::Header header;
-  header.stamp = ros::Time::now();
-  header.frame_id = config_.fixed_frame;
 
   if (contacts_publisher_.getNumSubscribers() > 0) {
     auto message = boost::make_shared<ContactArray>();
@@ -379,7 +294,8 @@ void DeformableCollisionNode::runCycle() {
     contacts_publisher_.publish(message);
   }
   times.contacts_published = Clock::now();
-  const std::optional<Clock::time_point> oldest_input = takeOldestInput();
+  times.contacts_published_ros = ros::Time::now();
+  const std::optional<Clock::time_point> oldest_input = recordLatencies(times);
 
   if (hierarchy_publisher_.getNumSubscribers() > 0 && scene_.objectCount() > 0) {
     auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
@@ -392,13 +308,41 @@ void DeformableCollisionNode::runCycle() {
   publishStats(header, times, oldest_input, points);
 }
 
-std::optional<DeformableCollisionNode::Clock::time_point> DeformableCollisionNode::takeOldestInput() {
+ros::Time DeformableCollisionNode::newestTakenStamp() const {
+  ros::Time newest;
+  for (const std::size_t index : applied_slots_) {
+    if (slots_[index].params.object.kind == ObjectKind::kTracked) newest = std::max(newest, taken_[index].stamp);
+  }
+  return newest;
+}
+
+void DeformableCollisionNode::stepToStamp(const ros::Time& stamp) {
+  // A stamp that does not advance (a repeated or older one) keeps the step as it was.
+  if (!last_cycle_stamp_.isZero() && stamp <= last_cycle_stamp_) return;
+  if (!last_cycle_stamp_.isZero()) {
+    scene_.setTimeStep(std::min((stamp - last_cycle_stamp_).toSec(), kLargestStepS));
+  }
+  last_cycle_stamp_ = stamp;
+}
+
+std::optional<DeformableCollisionNode::Clock::time_point> DeformableCollisionNode::recordLatencies(
+    const CycleTimes& times) {
   std::optional<Clock::time_point> oldest_input;
-  for (ObjectSlot& slot : slots_) {
-    if (slot.pending_since && (!oldest_input || *slot.pending_since < *oldest_input)) {
-      oldest_input = slot.pending_since;
+  for (const std::size_t index : applied_slots_) {
+    const ReadCloud& cloud = taken_[index];
+    if (!oldest_input || cloud.arrival < *oldest_input) oldest_input = cloud.arrival;
+    arrival_latency_.add(millisecondsBetween(cloud.arrival, times.contacts_published));
+    if (!cloud.stamp.isZero()) {
+      stamp_latency_.add(1e3 * (times.contacts_published_ros - cloud.stamp).toSec());
     }
-    slot.pending_since.reset();
+  }
+  const Clock::duration period = times.contacts_published - latency_period_start_;
+  if (period >= kLatencyPeriod) {
+    arrival_summary_ = arrival_latency_.close();
+    stamp_summary_ = stamp_latency_.close();
+    latency_period_s_ = std::chrono::duration<double>(period).count();
+    ++latency_periods_;
+    latency_period_start_ = times.contacts_published;
   }
   return oldest_input;
 }
@@ -412,7 +356,8 @@ std::size_t DeformableCollisionNode::publishDeformed(const std_msgs::Header& hea
     if (slot.deformed.getNumSubscribers() == 0) continue;
     auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
     cloud->header = header;
-    writeCloudPoints(positions, *cloud);
+    writeCloudPoints(positions, *cloud,
+                     slot.float64 ? sensor_msgs::PointField::FLOAT64 : sensor_msgs::PointField::FLOAT32);
     slot.deformed.publish(cloud);
   }
   return points;
@@ -438,6 +383,7 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.cycle_ms = cycle_ms;
   stats.input_latency_ms =
       oldest_input ? millisecondsBetween(*oldest_input, times.contacts_published) : 0.0;
+  fillLatencyStats(stats);
   stats.objects = static_cast<std::uint32_t>(scene_.objectCount());
   stats.points = static_cast<std::uint32_t>(points);
   stats.objects_moved = static_cast<std::uint32_t>(cycle.objects_moved);
@@ -445,8 +391,24 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.node_pairs_tested = static_cast<std::uint32_t>(cycle.node_pairs_tested);
   stats.point_tests = static_cast<std::uint32_t>(cycle.point_tests);
   stats.contacts = static_cast<std::uint32_t>(cycle.contacts);
+  stats.clouds_received = clouds_received_;
+  stats.clouds_rejected = clouds_rejected_;
+  stats.clouds_coalesced = handoff_.coalesced();
+  stats.non_finite_points = non_finite_points_;
   fillRegistrationStats(stats);
   stats_publisher_.publish(stats);
+}
+
+void DeformableCollisionNode::fillLatencyStats(Stats& stats) const {
+  stats.latency_periods = latency_periods_;
+  stats.latency_period_s = latency_period_s_;
+  stats.latency_clouds = arrival_summary_.count;
+  stats.arrival_latency_mean_ms = arrival_summary_.mean_ms;
+  stats.arrival_latency_p99_ms = arrival_summary_.p99_ms;
+  stats.arrival_latency_max_ms = arrival_summary_.max_ms;
+  stats.stamp_latency_mean_ms = stamp_summary_.mean_ms;
+  stats.stamp_latency_p99_ms = stamp_summary_.p99_ms;
+  stats.stamp_latency_max_ms = stamp_summary_.max_ms;
 }
 
 bool DeformableCollisionNode::onSetLevel(SetLevel::Request& request, SetLevel::Response& response) {

@@ -1,16 +1,20 @@
 #pragma once
 
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <atomic>
 #include <chrono>
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "deformable_collision/ContactArray.h"
@@ -18,21 +22,36 @@
 #include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
 #include "deformable_collision/core/scene.h"
+#include "deformable_collision/ros/cloud_handoff.h"
 #include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/hierarchy_markers.h"
+#include "deformable_collision/ros/latency_window.h"
 #include "deformable_collision/ros/node_config.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace deformable_collision {
 
 /// The ROS side of the package: reads the configuration, turns clouds into scene objects,
-/// runs the scene's cycle on a timer and publishes what is subscribed. All callbacks run
-/// on the node handles' queue, one at a time (the nodelet's single-threaded handles).
+/// runs the scene's cycle on a timer or on arriving clouds, and publishes what is
+/// subscribed. Two threads of its own, so that reading a cloud never delays a cycle:
+/// - the reader (reader_queue_, one spinner thread) runs the cloud subscriptions and the
+///   retries of clouds waiting for tf: it converts, transforms and checks each cloud and
+///   hands it to the cycle through handoff_. It alone touches readers_.
+/// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles and the
+///   services. It alone touches scene_, the cycle members of slots_ (index, poses, tracked
+///   indices, model, registration), taken_, markers_, the latency windows and
+///   stats_message_.
+/// Between them: handoff_ (its own mutex), the atomics of slots_ and of the node (counters,
+/// the wake-up flag), and the drop reports (report_mutex_). tf_buffer_ is thread-safe and
+/// filled by the listener's own thread. Everything else is set in the constructor and only
+/// read afterwards.
 class DeformableCollisionNode {
  public:
   /// Loads and validates every parameter before subscribing to anything.
   /// @throw std::invalid_argument naming the bad parameter.
   DeformableCollisionNode(ros::NodeHandle node_handle, ros::NodeHandle private_handle);
+  /// Stops reading, then cycling, before anything they use goes.
+  ~DeformableCollisionNode();
 
  private:
   using Clock = std::chrono::steady_clock;
@@ -44,20 +63,22 @@ class DeformableCollisionNode {
 
   struct ObjectSlot {
     ObjectParams params;
-    std::optional<std::size_t> index;  ///< In the scene, once a cloud set its rest shape.
     ros::Subscriber subscriber;
     ros::Publisher deformed;
-    std::optional<Clock::time_point> pending_since;  ///< Oldest cloud not yet cycled.
-    std::optional<Eigen::Isometry3d> last_pose;      ///< Kinematic objects.
-    /// Tracked objects: the cloud indices of the object's points (the first cloud's finite
-    /// ones) and that cloud's size, which every later cloud must have.
-    std::vector<std::uint32_t> tracked_indices;
-    std::size_t tracked_cloud_size = 0;
-    /// Clouds whose transform was not there yet, oldest first, retried in that order each
-    /// cycle and on each new cloud, each until tf_wait_s after its arrival.
-    std::deque<AwaitingCloud> awaiting_transform;
-    std::optional<Clock::time_point> last_report;  ///< Of a dropped cloud.
+    /// Set by the cycle once the object is in the scene, and the cloud size a tracked object
+    /// keeps (its first cloud's; 0 until then), read by the reader to check clouds early.
+    std::atomic<bool> exists{false};
+    std::atomic<std::size_t> tracked_cloud_size{0};
+    /// Guarded by report_mutex_: the last report of a dropped cloud, and the drops since.
+    std::optional<Clock::time_point> last_report;
     std::size_t drops_unreported = 0;
+    // The cycle's.
+    std::optional<std::size_t> index;  ///< In the scene, once a cloud set its rest shape.
+    std::optional<Eigen::Isometry3d> last_pose;  ///< Kinematic objects.
+    /// Tracked objects: the cloud indices of the object's points (the first cloud's finite
+    /// ones).
+    std::vector<std::uint32_t> tracked_indices;
+    bool float64 = false;  ///< ~deformed/<object> in FLOAT64, like the last cloud.
     /// on_cloud register: model_file's points in model_frame until tf places them, the last
     /// cloud's registration, and the clouds held since start and since the last report.
     std::vector<Eigen::Vector3d> model_points;
@@ -67,9 +88,18 @@ class DeformableCollisionNode {
     std::size_t held_unreported = 0;
   };
 
+  /// The reader's state of one object.
+  struct CloudReader {
+    ReadCloud cloud;  ///< The cloud being read; handed over by a swap.
+    /// Clouds whose transform was not there yet, oldest first, retried in that order on
+    /// the retry timer and on each new cloud, each until tf_wait_s after its arrival.
+    std::deque<AwaitingCloud> awaiting_transform;
+  };
+
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
   enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
 
+  // The reader (node_cloud_reader.cpp).
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
   /// Whether tf may still be learning its frames, so that an unknown frame may yet come.
   bool tfFilling() const;
@@ -84,65 +114,90 @@ class DeformableCollisionNode {
   /// False if the cloud waits for its transform.
   bool processCloud(std::size_t slot, const sensor_msgs::PointCloud2& cloud,
                     Clock::time_point arrival, bool last_try);
-  /// Counts a dropped cloud and says why, at most once per 5 s per object.
+  /// Counts a dropped cloud and says why, at most once per 5 s per object. Either thread.
   void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
   /// `last_try`: a missing transform refuses the cloud instead of making it wait.
   CloudOutcome handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
                            Clock::time_point arrival, bool last_try);
-  /// Reads the cloud into cloud_points_; its error also says why the object cannot take it
+  /// Reads the cloud into `points`; its error also says why the object cannot take it
   /// (empty, or a tracked object's cloud of another size).
-  CloudReadResult readObjectCloud(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud);
-  /// tracked_points_: the points of cloud_points_ at `indices`, a tracked object's points.
-  void selectTrackedPoints(const std::vector<std::uint32_t>& indices);
-  void applyCloud(ObjectSlot& slot, std::vector<Eigen::Vector3d>& points, bool first);
-  /// Points far apart compared with the contact distance let other clouds through: say so.
-  void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
+  CloudReadResult readObjectCloud(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
+                                  std::vector<Eigen::Vector3d>& points) const;
   /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
   /// it never will (no frame, an unknown frame once tf has filled, not finite).
-  TransformOutcome transformPoints(const ObjectSlot& slot,
-                                  const sensor_msgs::PointCloud2& cloud, bool last_try,
-                                  std::vector<Eigen::Vector3d>& points, std::string& problem);
+  TransformOutcome transformPoints(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
+                                   bool last_try, ReadCloud& read, std::string& problem) const;
+  /// Hands a read cloud to the cycle, waking it if the cloud may start one.
+  void handOver(std::size_t slot, ReadCloud& read);
+
+  // The cycle (deformable_collision_node.cpp, node_registration.cpp).
+  /// Takes the clouds handed over since the last cycle and applies each to its object.
+  void applyTakenClouds();
+  /// Whether the cloud changed the object (an ignored object's is left alone).
+  bool applyCloud(ObjectSlot& slot, ReadCloud& cloud);
+  /// The points of a tracked object's cloud, in the order of its rest shape.
+  const std::vector<Eigen::Vector3d>& trackedPoints(const ObjectSlot& slot,
+                                                    const std::vector<Eigen::Vector3d>& cloud);
+  /// Why a tracked object refuses a cloud of `points` points.
+  static std::string trackedSizeProblem(std::size_t points, std::size_t first_points);
+  /// Points far apart compared with the contact distance let other clouds through: say so.
+  void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
   /// Reads every model_file, so that a bad one stops the node at start, naming the object.
   /// @throw std::invalid_argument
   void loadModels();
   /// Creates the object of a slot from its model file at model_frame's latest pose, once tf
   /// has it; whether the object exists.
   bool placeModel(ObjectSlot& slot);
-  void placeModels();
-  /// A cloud of an object whose model waits for model_frame's pose waits with it, or on its
-  /// last try is dropped; std::nullopt when the model is placed or there is none.
-  std::optional<CloudOutcome> awaitModel(ObjectSlot& slot, bool last_try);
+  /// Whether a model still waits for its frame.
+  bool placeModels();
   /// Fits a registered object to a cloud in fixed_frame; keeps the report for ~stats.
-  void registerCloud(ObjectSlot& slot, const std::vector<Eigen::Vector3d>& cloud_m);
+  void registerCloud(ObjectSlot& slot, const ReadCloud& cloud);
   /// Says that a registration held the model, at most once per 5 s per object.
   void reportHeld(ObjectSlot& slot);
   void fillRegistrationStats(Stats& stats) const;
   void followFrames();
+  void cycleLoop();
+  /// cycle_on clouds: a cycle if a cloud starts one and rate_hz allows it; sets the wait
+  /// until the next check.
+  void cycleOnClouds();
   void onTimer(const ros::TimerEvent& event);
   /// When the steps of one cycle ended, for ~stats.
   struct CycleTimes {
     Clock::time_point start;
     Clock::time_point cycled;
     Clock::time_point contacts_published;
+    ros::Time contacts_published_ros;
     Clock::time_point published;
   };
 
+  /// runCycle, an exception logged instead of ending the thread.
+  void runCycleLogged();
   void runCycle();
-  /// The arrival of the oldest cloud applied since the last cycle, which is now consumed.
-  std::optional<Clock::time_point> takeOldestInput();
+  /// dt_s: stamp: the step from the last cycle's stamp to `stamp`.
+  void stepToStamp(const ros::Time& stamp);
+  /// The newest stamp of the clouds taken this cycle; zero if none.
+  ros::Time newestTakenStamp() const;
+  /// The arrival of the oldest cloud taken this cycle, and each taken cloud's latencies.
+  std::optional<Clock::time_point> recordLatencies(const CycleTimes& times);
   /// Publishes the subscribed ~deformed/<object> clouds; returns the points of all objects.
   std::size_t publishDeformed(const std_msgs::Header& header);
   void publishStats(const std_msgs::Header& header, const CycleTimes& times,
                     std::optional<Clock::time_point> oldest_input, std::size_t points);
+  void fillLatencyStats(Stats& stats) const;
   bool onSetLevel(SetLevel::Request& request, SetLevel::Response& response);
   bool onGetContacts(GetContacts::Request& request, GetContacts::Response& response);
 
+  // The queues come first: handles, subscribers and timers that use them go before them.
+  ros::CallbackQueue reader_queue_;
+  ros::CallbackQueue cycle_queue_;
   ros::NodeHandle node_handle_;
   ros::NodeHandle private_handle_;
   NodeConfig config_;
   Clock::time_point started_;
   Scene scene_;
   std::vector<ObjectSlot> slots_;
+  std::vector<CloudReader> readers_;
+  CloudHandoff handoff_;
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
 
@@ -152,17 +207,44 @@ class DeformableCollisionNode {
   ros::ServiceServer set_level_service_;
   ros::ServiceServer get_contacts_service_;
   ros::Timer timer_;
+  ros::WallTimer retry_timer_;
 
+  std::mutex report_mutex_;
+  std::atomic<std::uint64_t> clouds_received_{0};
+  std::atomic<std::uint64_t> clouds_rejected_{0};
+  std::atomic<std::uint64_t> non_finite_points_{0};
+  /// Set by the reader when it queues wake_ on cycle_queue_, cleared by the cycle before it
+  /// looks at handoff_: one wake-up waits at most, and none is lost.
+  std::atomic<bool> wake_pending_{false};
+  std::atomic<bool> stopping_{false};
+  ros::CallbackInterfacePtr wake_;
+
+  // The cycle's.
+  std::vector<ReadCloud> taken_;
+  std::vector<std::size_t> taken_slots_;
+  std::vector<std::size_t> applied_slots_;
+  std::optional<Clock::time_point> last_cycle_start_;
+  ros::Time last_cycle_stamp_;
+  bool models_waiting_ = false;
+  const Clock::duration cycle_period_;  ///< 1 / rate_hz
+  Clock::duration cycle_wait_;
   HierarchyMarkers markers_;
-  std::vector<Eigen::Vector3d> cloud_points_;
   std::vector<Eigen::Vector3d> tracked_points_;
-  /// The origin of the last cloud's frame in the target frame, the sensor's position, when
-  /// the cloud came in a frame of its own (a camera's); unknown for a cloud in the target frame.
-  std::optional<Eigen::Vector3d> cloud_viewpoint_;
   std::vector<SceneContact> query_contacts_;
   /// The services' view of slots_: names point into slots_[i].params, which never moves.
   std::vector<NamedObject> named_objects_;
+  LatencyWindow arrival_latency_;
+  LatencyWindow stamp_latency_;
+  Clock::time_point latency_period_start_;
+  LatencySummary arrival_summary_;
+  LatencySummary stamp_summary_;
+  double latency_period_s_ = 0.0;  ///< The length of the period summarised.
+  std::uint64_t latency_periods_ = 0;
   Stats stats_message_;
+
+  // Last: they start after everything they use exists and stop before it goes.
+  ros::AsyncSpinner reader_spinner_;
+  std::thread cycle_thread_;
 };
 
 }  // namespace deformable_collision

@@ -53,6 +53,7 @@ bool DeformableCollisionNode::placeModel(ObjectSlot& slot) {
   for (Eigen::Vector3d& p : placed) p = *pose * p;
   // The file's points are kept until the object exists, so that a failure tries again.
   slot.index = scene_.addObject(params.object, std::move(placed));
+  slot.exists = true;
   const std::size_t count = slot.model_points.size();
   slot.model_points = {};
   ROS_INFO("object '%s': rest shape of %zu points from %s at the pose of '%s', %s",
@@ -62,23 +63,18 @@ bool DeformableCollisionNode::placeModel(ObjectSlot& slot) {
   return true;
 }
 
-std::optional<DeformableCollisionNode::CloudOutcome> DeformableCollisionNode::awaitModel(
-    ObjectSlot& slot, bool last_try) {
-  if (slot.model_points.empty() || placeModel(slot)) return std::nullopt;
-  if (!last_try) return CloudOutcome::kAwaitingTransform;
-  dropCloud(slot, ros::console::levels::Warn,
-            "its model waits for the transform from model_frame '" + slot.params.model_frame +
-                "' to '" + config_.fixed_frame + "'");
-  return CloudOutcome::kRejected;
+bool DeformableCollisionNode::placeModels() {
+  bool waiting = false;
+  for (ObjectSlot& slot : slots_) {
+    // The file's points are dropped once the object is made from them.
+    placeModel(slot);
+    waiting = waiting || !slot.model_points.empty();
+  }
+  return waiting;
 }
 
-void DeformableCollisionNode::placeModels() {
-  for (ObjectSlot& slot : slots_) placeModel(slot);
-}
-
-void DeformableCollisionNode::registerCloud(ObjectSlot& slot,
-                                            const std::vector<Eigen::Vector3d>& cloud_m) {
-  slot.registration = scene_.registerCloud(*slot.index, cloud_m, cloud_viewpoint_);
+void DeformableCollisionNode::registerCloud(ObjectSlot& slot, const ReadCloud& cloud) {
+  slot.registration = scene_.registerCloud(*slot.index, cloud.points, cloud.viewpoint);
   if (slot.registration.held) reportHeld(slot);
 }
 

@@ -1,0 +1,245 @@
+// The node's reader thread: each cloud is converted, transformed into its object's frame and
+// checked here, off the cycle's thread, then handed to the cycle (CloudHandoff).
+#include <algorithm>
+
+#include "deformable_collision/ros/cloud_transform.h"
+#include "deformable_collision/ros/deformable_collision_node.h"
+
+namespace deformable_collision {
+namespace {
+
+/// At most one report per object of its dropped clouds in this period.
+constexpr std::chrono::seconds kReportPeriod(5);
+/// Per object: enough for a sensor at 30 Hz whose tf lags by a few frames.
+constexpr std::size_t kMaxAwaitingClouds = 8;
+/// The listener's subscriptions to /tf and /tf_static are made when the node starts, and on
+/// a loaded machine their first transforms can take about this long: before, no frame is
+/// known, and an unknown frame only means that tf has not filled yet.
+constexpr double kTfFillMinimumS = 1.0;
+
+}  // namespace
+
+void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud,
+                                      std::size_t index) {
+  ObjectSlot& slot = slots_[index];
+  auto& awaiting = readers_[index].awaiting_transform;
+  ++clouds_received_;
+  const auto arrival = Clock::now();
+  // Behind older clouds that wait for their transform, in arrival order: a tracked object
+  // must not step back, and a sensor whose tf always lags keeps every cloud. A cloud in a
+  // frame tf does not know would only take the place of one that can still be placed.
+  if (!awaiting.empty()) {
+    const std::string problem = unknownFrameProblem(slot, cloud->header.frame_id);
+    if (!problem.empty()) {
+      dropCloud(slot, ros::console::levels::Error, problem);
+      return;
+    }
+    if (awaiting.size() == kMaxAwaitingClouds) {
+      awaiting.pop_front();
+      dropCloud(slot, ros::console::levels::Warn,
+                "more than " + std::to_string(kMaxAwaitingClouds) + " clouds wait for their transform");
+    }
+    awaiting.push_back({cloud, arrival});
+    retryAwaitingClouds(index, arrival);
+    return;
+  }
+  if (!processCloud(index, *cloud, arrival, config_.tf_wait_s == 0.0)) {
+    awaiting.push_back({cloud, arrival});
+  }
+}
+
+bool DeformableCollisionNode::tfFilling() const {
+  // The longer of the two: a tf_wait_s above the minimum says that the transforms of this
+  // setup may lag that long, and at start-up that includes the first one naming a frame.
+  const double fill_s = std::max(config_.tf_wait_s, kTfFillMinimumS);
+  return std::chrono::duration<double>(Clock::now() - started_).count() < fill_s;
+}
+
+const std::string& DeformableCollisionNode::targetFrame(const ObjectSlot& slot) const {
+  return slot.params.object.kind == ObjectKind::kKinematic ? slot.params.follow_frame
+                                                           : config_.fixed_frame;
+}
+
+std::string DeformableCollisionNode::unknownFrameProblem(const ObjectSlot& slot,
+                                                         const std::string& frame) const {
+  if (frame.empty() || frame == targetFrame(slot) || tfFilling() || tf_buffer_._frameExists(frame)) {
+    return "";
+  }
+  return "tf knows no frame '" + frame + "', so the cloud is dropped without waiting tf_wait_s";
+}
+
+void DeformableCollisionNode::retryAwaitingClouds() {
+  const auto now = Clock::now();
+  for (std::size_t index = 0; index < slots_.size(); ++index) retryAwaitingClouds(index, now);
+}
+
+void DeformableCollisionNode::retryAwaitingClouds(std::size_t index, Clock::time_point now) {
+  auto& awaiting = readers_[index].awaiting_transform;
+  while (!awaiting.empty()) {
+    const AwaitingCloud& oldest = awaiting.front();
+    const bool last_try =
+        std::chrono::duration<double>(now - oldest.arrival).count() >= config_.tf_wait_s;
+    // tf arrives in time order: while the oldest cannot be placed, the newer wait too.
+    if (!processCloud(index, *oldest.cloud, oldest.arrival, last_try)) return;
+    awaiting.pop_front();
+  }
+}
+
+bool DeformableCollisionNode::processCloud(std::size_t index, const sensor_msgs::PointCloud2& cloud,
+                                           Clock::time_point arrival, bool last_try) {
+  // An exception leaving a callback would take the whole nodelet manager down.
+  try {
+    return handleCloud(cloud, index, arrival, last_try) != CloudOutcome::kAwaitingTransform;
+  } catch (const std::exception& e) {
+    dropCloud(slots_[index], ros::console::levels::Error, e.what());
+    return true;
+  }
+}
+
+void DeformableCollisionNode::dropCloud(ObjectSlot& slot, ros::console::levels::Level level,
+                                        const std::string& problem) {
+  ++clouds_rejected_;
+  std::lock_guard<std::mutex> lock(report_mutex_);
+  ++slot.drops_unreported;
+  // Throttled per object, so that one noisy topic cannot hide another one's problems.
+  const auto now = Clock::now();
+  if (slot.last_report && now - *slot.last_report < kReportPeriod) return;
+  const std::string dropped_before =
+      slot.drops_unreported > 1
+          ? " (" + std::to_string(slot.drops_unreported - 1) + " more dropped since the last report)"
+          : "";
+  ROS_LOG(level, ROSCONSOLE_DEFAULT_NAME, "cloud on %s dropped, object '%s' unchanged: %s%s",
+          slot.subscriber.getTopic().c_str(), slot.params.object.name.c_str(), problem.c_str(),
+          dropped_before.c_str());
+  slot.last_report = now;
+  slot.drops_unreported = 0;
+}
+
+CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
+                                                        const sensor_msgs::PointCloud2& cloud,
+                                                        std::vector<Eigen::Vector3d>& points) const {
+  // A tracked object keeps non-finite points as unobserved slots, so that point i of every
+  // cloud is the same point even when the first cloud has holes (organized depth clouds).
+  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
+  CloudReadResult read =
+      readCloudPoints(cloud, tracked ? NonFinitePoints::kKeepAsNaN : NonFinitePoints::kDrop,
+                      config_.max_points_per_object, points);
+  if (!read.ok()) return read;
+  // A registered object's view may miss it: the registration holds the model and says so.
+  const bool registered = slot.params.on_cloud == OnCloud::kRegister && slot.exists;
+  const std::size_t tracked_size = slot.tracked_cloud_size;
+  if (points.empty() && !registered) {
+    read.error = "the cloud is empty";
+  } else if (tracked && tracked_size != 0 && points.size() != tracked_size) {
+    read.error = trackedSizeProblem(points.size(), tracked_size);
+  }
+  return read;
+}
+
+std::string DeformableCollisionNode::trackedSizeProblem(std::size_t points, std::size_t first_points) {
+  return "it has " + std::to_string(points) + " points, the first had " +
+         std::to_string(first_points) +
+         " (a tracked object keeps its points; on_cloud: reset takes a new shape)";
+}
+
+DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
+    const sensor_msgs::PointCloud2& cloud, std::size_t index, Clock::time_point arrival,
+    bool last_try) {
+  ObjectSlot& slot = slots_[index];
+  const bool exists = slot.exists;
+  if (!exists && !slot.params.model_file.empty()) {
+    // The cycle places the model once tf has model_frame; until then its clouds wait.
+    if (!last_try) return CloudOutcome::kAwaitingTransform;
+    dropCloud(slot, ros::console::levels::Warn,
+              "its model waits for the transform from model_frame '" + slot.params.model_frame +
+                  "' to '" + config_.fixed_frame + "'");
+    return CloudOutcome::kRejected;
+  }
+  if (exists && slot.params.on_cloud == OnCloud::kIgnore) return CloudOutcome::kApplied;
+
+  const auto reject = [&](const std::string& problem) {
+    dropCloud(slot, ros::console::levels::Error, problem);
+    return CloudOutcome::kRejected;
+  };
+  ReadCloud& read = readers_[index].cloud;
+  const CloudReadResult result = readObjectCloud(slot, cloud, read.points);
+  if (!result.ok()) return reject(result.error);
+  std::string problem;
+  switch (transformPoints(slot, cloud, last_try, read, problem)) {
+    case TransformOutcome::kDone:
+      break;
+    case TransformOutcome::kNotYet:
+      return CloudOutcome::kAwaitingTransform;
+    case TransformOutcome::kMissing:
+      dropCloud(slot, ros::console::levels::Warn, problem);
+      return CloudOutcome::kRejected;
+    case TransformOutcome::kRefused:
+      return reject(problem);
+  }
+  // Finite but absurd coordinates would be taken as the object's shape or pose.
+  problem = farCoordinateProblem(read.points, config_.max_coordinate_m, targetFrame(slot));
+  if (!problem.empty()) return reject(problem);
+  // A kinematic object is placed by its frame's pose, which may come later too.
+  if (slot.params.object.kind == ObjectKind::kKinematic && !last_try &&
+      !tf_buffer_.canTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))) {
+    return CloudOutcome::kAwaitingTransform;
+  }
+  if (slot.params.on_cloud == OnCloud::kTrack && !exists &&
+      std::none_of(read.points.begin(), read.points.end(),
+                   [](const Eigen::Vector3d& p) { return p.allFinite(); })) {
+    return reject("every point is non-finite");
+  }
+  non_finite_points_ += result.non_finite;
+  read.stamp = cloud.header.stamp;
+  read.arrival = arrival;
+  read.float64 = result.datatype == sensor_msgs::PointField::FLOAT64;
+  handOver(index, read);
+  return CloudOutcome::kApplied;
+}
+
+DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoints(
+    const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud, bool last_try, ReadCloud& read,
+    std::string& problem) const {
+  const std::string& target_frame = targetFrame(slot);
+  read.viewpoint.reset();
+  if (cloud.header.frame_id.empty()) {
+    problem = "header.frame_id is empty";
+    return TransformOutcome::kRefused;
+  }
+  if (cloud.header.frame_id == target_frame) return TransformOutcome::kDone;
+  const CloudTransformLookup lookup =
+      lookUpCloudTransform(tf_buffer_, target_frame, cloud.header.frame_id, cloud.header.stamp);
+  if (lookup.status == CloudTransformStatus::kUnknownFrame) {
+    problem = unknownFrameProblem(slot, cloud.header.frame_id);
+    if (!problem.empty()) return TransformOutcome::kRefused;
+  }
+  if (lookup.status != CloudTransformStatus::kFound) {
+    // The pose at the cloud's stamp may still come: a sensor's tf is often published after
+    // its data.
+    if (!last_try) return TransformOutcome::kNotYet;
+    problem = "no transform from '" + cloud.header.frame_id + "' to '" + target_frame +
+              "' within tf_wait_s = " + std::to_string(config_.tf_wait_s) + " s: " + lookup.error;
+    return TransformOutcome::kMissing;
+  }
+  const std::optional<Eigen::Isometry3d> transform = toIsometry(lookup.transform);
+  if (!transform) {
+    problem = "the transform from '" + cloud.header.frame_id + "' to '" + target_frame +
+              "' is not finite";
+    return TransformOutcome::kRefused;
+  }
+  for (auto& p : read.points) p = *transform * p;
+  read.viewpoint = transform->translation();
+  return TransformOutcome::kDone;
+}
+
+void DeformableCollisionNode::handOver(std::size_t index, ReadCloud& read) {
+  handoff_.put(index, read);
+  if (config_.cycle_on != CycleOn::kClouds ||
+      slots_[index].params.object.kind != ObjectKind::kTracked) {
+    return;
+  }
+  // One wake-up at a time: the cycle clears the flag before it looks at the handoff.
+  if (!wake_pending_.exchange(true)) cycle_queue_.addCallback(wake_);
+}
+
+}  // namespace deformable_collision
