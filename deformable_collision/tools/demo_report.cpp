@@ -33,10 +33,45 @@ struct Summary {
   double mean() const { return count ? sum / count : 0.0; }
 };
 
+/// The 99th percentile (nearest rank) of `values`, which it reorders; 0 if empty.
+double percentile99(std::vector<double>& values) {
+  if (values.empty()) return 0.0;
+  const std::size_t rank = (99 * values.size() + 99) / 100 - 1;
+  std::nth_element(values.begin(), values.begin() + rank, values.end());
+  return values[rank];
+}
+
+/// The node's per-cloud latency summaries (one per latency period) over the watch.
+struct LatencyPeriods {
+  std::uint64_t last_period = 0;
+  std::size_t periods = 0;
+  std::size_t clouds = 0;
+  double arrival_sum_ms = 0.0, arrival_worst_p99_ms = 0.0, arrival_max_ms = 0.0;
+  double stamp_sum_ms = 0.0, stamp_worst_p99_ms = 0.0, stamp_max_ms = 0.0;
+
+  void add(const deformable_collision::Stats& stats) {
+    if (stats.latency_periods == last_period) return;
+    const bool first_seen = last_period == 0;
+    last_period = stats.latency_periods;
+    // The first summary seen may cover time before the watch began (the node's start).
+    if (first_seen || stats.latency_clouds == 0) return;
+    ++periods;
+    clouds += stats.latency_clouds;
+    arrival_sum_ms += stats.arrival_latency_mean_ms * stats.latency_clouds;
+    arrival_worst_p99_ms = std::max(arrival_worst_p99_ms, stats.arrival_latency_p99_ms);
+    arrival_max_ms = std::max(arrival_max_ms, stats.arrival_latency_max_ms);
+    stamp_sum_ms += stats.stamp_latency_mean_ms * stats.latency_clouds;
+    stamp_worst_p99_ms = std::max(stamp_worst_p99_ms, stats.stamp_latency_p99_ms);
+    stamp_max_ms = std::max(stamp_max_ms, stats.stamp_latency_max_ms);
+  }
+};
+
 /// What the node's ~stats said over the watch: the last message and each figure's summary.
 struct StatsRecord {
   deformable_collision::Stats last;
   Summary shape_matching, detection, response, publish, cycle, latency, contacts;
+  std::vector<double> latencies_ms;  ///< Per cycle, of its oldest cloud.
+  LatencyPeriods latency_periods;
   std::size_t cycles = 0;
   ros::WallTime first_cycle;
 
@@ -51,7 +86,11 @@ struct StatsRecord {
     publish.add(stats.publish_ms);
     cycle.add(stats.cycle_ms);
     contacts.add(stats.contacts);
-    if (stats.input_latency_ms > 0.0) latency.add(stats.input_latency_ms);
+    if (stats.input_latency_ms > 0.0) {
+      latency.add(stats.input_latency_ms);
+      latencies_ms.push_back(stats.input_latency_ms);
+    }
+    latency_periods.add(stats);
   }
 };
 
@@ -175,7 +214,26 @@ bool watch(const StatsRecord& record, const std::string& node, double duration_s
   return false;
 }
 
-void printReport(const StatsRecord& record, double duration_s) {
+void printLatencies(StatsRecord& record) {
+  if (record.latency.count > 0) {
+    std::printf("cloud arrival to contacts published, oldest cloud of each cycle: mean %.3f ms, "
+                "p99 %.3f ms, max %.3f ms (%zu cycles)\n",
+                record.latency.mean(), percentile99(record.latencies_ms), record.latency.max,
+                record.latency.count);
+  }
+  const LatencyPeriods& periods = record.latency_periods;
+  if (periods.clouds > 0) {
+    std::printf("per cloud, over the node's %zu latency periods (%zu clouds), to contacts "
+                "published: from arrival mean %.3f ms, worst p99 %.3f ms, max %.3f ms; from "
+                "stamp mean %.3f ms, worst p99 %.3f ms, max %.3f ms\n",
+                periods.periods, periods.clouds, periods.arrival_sum_ms / periods.clouds,
+                periods.arrival_worst_p99_ms, periods.arrival_max_ms,
+                periods.stamp_sum_ms / periods.clouds, periods.stamp_worst_p99_ms,
+                periods.stamp_max_ms);
+  }
+}
+
+void printReport(StatsRecord& record, double duration_s) {
   const deformable_collision::Stats& last = record.last;
   std::printf("\n=== deformable_collision demo report (%.1f s, %zu cycles) ===\n", duration_s,
               record.cycles);
@@ -188,14 +246,13 @@ void printReport(const StatsRecord& record, double duration_s) {
               record.publish.mean(), record.publish.max, record.cycle.mean(), record.cycle.max);
   std::printf("contacts per cycle: mean %.1f, max %.0f, last %u\n", record.contacts.mean(),
               record.contacts.max, last.contacts);
-  if (record.latency.count > 0) {
-    std::printf("cloud arrival to contacts published: mean %.3f ms, max %.3f ms (%zu cycles)\n",
-                record.latency.mean(), record.latency.max, record.latency.count);
-  }
-  std::printf("overruns %lu of %lu cycles; clouds received %lu, rejected %lu; non-finite points %lu\n",
+  printLatencies(record);
+  std::printf("overruns %lu of %lu cycles; clouds received %lu, rejected %lu, coalesced %lu; "
+              "non-finite points %lu\n",
               static_cast<unsigned long>(last.overruns), static_cast<unsigned long>(last.cycles),
               static_cast<unsigned long>(last.clouds_received),
               static_cast<unsigned long>(last.clouds_rejected),
+              static_cast<unsigned long>(last.clouds_coalesced),
               static_cast<unsigned long>(last.non_finite_points));
 }
 
