@@ -1,0 +1,201 @@
+// cycle_on: clouds (rostest cycle_on_clouds.test): every cloud of a tracked object starts
+// exactly one cycle whose outputs carry its stamp, a burst faster than rate_hz is coalesced,
+// and a FLOAT64 cloud far from the origin comes back as FLOAT64 with its points. Every wait
+// is on an event with a timeout.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+
+#include <algorithm>
+#include <map>
+#include <vector>
+
+#include "deformable_collision/ContactArray.h"
+#include "deformable_collision/Stats.h"
+#include "node_test_support.h"
+
+namespace deformable_collision {
+namespace test {
+namespace {
+
+using sensor_msgs::PointCloud2;
+
+const std::string kNode = "/deformable_collision";
+constexpr double kRateHz = 10.0;  // cycle_on_clouds_test.yaml
+
+/// A 0.6 m floor of two layers, top at z = 0.
+Points floorPoints() { return grid(31, 31, 2, 0.02, {0.0, 0.0, -0.01}); }
+/// A 0.1 m cube 0.01 m above the floor, moved `shift_m` along x.
+Points probePoints(double shift_m) { return grid(6, 6, 6, 0.02, {-0.15 + shift_m, 0.0, 0.06}); }
+
+/// Spins until `messages` holds one stamped `stamp`: the last such, or null after the timeout.
+template <typename Message>
+boost::shared_ptr<const Message> waitForStamp(
+    const std::vector<boost::shared_ptr<const Message>>& messages, const ros::Time& stamp) {
+  boost::shared_ptr<const Message> found;
+  waitFor([&] {
+    for (const auto& message : messages) {
+      if (message->header.stamp == stamp) found = message;
+    }
+    return found != nullptr;
+  });
+  return found;
+}
+
+class CycleOnCloudsTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    for (const std::string name : {"floor", "probe", "far"}) {
+      inputs_[name] = handle_.advertise<PointCloud2>("/test/" + name, 100, name == "floor");
+    }
+    contacts_subscriber_ = handle_.subscribe<ContactArray>(
+        kNode + "/contacts", 1000, boost::function<void(const ContactArray::ConstPtr&)>(
+                                       [this](const ContactArray::ConstPtr& m) { contacts_.push_back(m); }));
+    stats_subscriber_ = handle_.subscribe<Stats>(
+        kNode + "/stats", 1000,
+        boost::function<void(const Stats::ConstPtr&)>([this](const Stats::ConstPtr& m) { stats_.push_back(m); }));
+    far_subscriber_ = handle_.subscribe<PointCloud2>(
+        kNode + "/deformed/far", 100, boost::function<void(const PointCloud2::ConstPtr&)>(
+                                          [this](const PointCloud2::ConstPtr& m) { far_.push_back(m); }));
+    probe_subscriber_ = handle_.subscribe<PointCloud2>(
+        kNode + "/deformed/probe", 100, boost::function<void(const PointCloud2::ConstPtr&)>(
+                                            [this](const PointCloud2::ConstPtr& m) { probe_.push_back(m); }));
+    ASSERT_TRUE(waitFor([this] {
+      for (const auto& [name, publisher] : inputs_) {
+        if (publisher.getNumSubscribers() == 0) return false;
+      }
+      return contacts_subscriber_.getNumPublishers() > 0 && stats_subscriber_.getNumPublishers() > 0 &&
+             far_subscriber_.getNumPublishers() > 0 && probe_subscriber_.getNumPublishers() > 0;
+    })) << "the nodelet did not connect";
+    inputs_["floor"].publish(cloudOf(floorPoints(), "world"));
+    // The first probe cloud sets its rest shape; its cycle is the test's starting point.
+    ASSERT_NE(publishProbe(0.0, ros::Time::now()), nullptr) << "no cycle for the probe's first cloud";
+  }
+
+  /// Publishes a probe cloud stamped `stamp` and waits for the contacts of a cycle with it.
+  ContactArray::ConstPtr publishProbe(double shift_m, const ros::Time& stamp) {
+    PointCloud2 cloud = cloudOf(probePoints(shift_m), "world");
+    cloud.header.stamp = stamp;
+    inputs_["probe"].publish(cloud);
+    return waitForContacts(stamp);
+  }
+
+  ContactArray::ConstPtr waitForContacts(const ros::Time& stamp) { return waitForStamp(contacts_, stamp); }
+  Stats::ConstPtr waitForStats(const ros::Time& stamp) { return waitForStamp(stats_, stamp); }
+
+  ros::NodeHandle handle_;
+  std::map<std::string, ros::Publisher> inputs_;
+  ros::Subscriber contacts_subscriber_, stats_subscriber_, far_subscriber_, probe_subscriber_;
+  std::vector<ContactArray::ConstPtr> contacts_;
+  std::vector<Stats::ConstPtr> stats_;
+  std::vector<PointCloud2::ConstPtr> far_, probe_;
+};
+
+TEST_F(CycleOnCloudsTest, EveryCloudStartsExactlyOneCycleCarryingItsStamp) {
+  const Stats::ConstPtr before = waitForStats(contacts_.back()->header.stamp);
+  ASSERT_NE(before, nullptr);
+  const std::size_t contacts_before = contacts_.size();
+  std::vector<ros::Time> stamps;
+  // The last cloud's cycle also shows that no further cycle followed the others.
+  for (int i = 1; i <= 11; ++i) {
+    stamps.push_back(ros::Time::now());
+    const ContactArray::ConstPtr contacts = publishProbe(0.001 * i, stamps.back());
+    ASSERT_NE(contacts, nullptr) << "no cycle for cloud " << i;
+    EXPECT_FALSE(contacts->contacts.empty()) << "the probe touches the floor";
+  }
+  ASSERT_EQ(contacts_.size() - contacts_before, stamps.size()) << "one cycle per cloud";
+  for (std::size_t i = 0; i < stamps.size(); ++i) {
+    EXPECT_EQ(contacts_[contacts_before + i]->header.stamp, stamps[i]) << i;
+  }
+  const Stats::ConstPtr after = waitForStats(stamps.back());
+  ASSERT_NE(after, nullptr);
+  EXPECT_EQ(after->cycles - before->cycles, stamps.size());
+  EXPECT_EQ(after->clouds_coalesced, before->clouds_coalesced);
+}
+
+TEST_F(CycleOnCloudsTest, ABurstFasterThanTheRateIsCoalesced) {
+  const Stats::ConstPtr before = waitForStats(contacts_.back()->header.stamp);
+  ASSERT_NE(before, nullptr);
+  const std::size_t contacts_before = contacts_.size();
+  constexpr int kBurst = 40;
+  const ros::WallTime started = ros::WallTime::now();
+  ros::Time last;
+  for (int i = 0; i < kBurst; ++i) {
+    last = std::max(ros::Time::now(), last + ros::Duration(1e-6));
+    PointCloud2 cloud = cloudOf(probePoints(0.0005 * i), "world");
+    cloud.header.stamp = last;
+    inputs_["probe"].publish(cloud);
+  }
+  ASSERT_NE(waitForContacts(last), nullptr) << "the burst's newest cloud started no cycle";
+  const double elapsed_s = (ros::WallTime::now() - started).toSec();
+  const Stats::ConstPtr after = waitForStats(last);
+  ASSERT_NE(after, nullptr);
+  const std::uint64_t cycles = after->cycles - before->cycles;
+  EXPECT_EQ(contacts_.size() - contacts_before, cycles);
+  EXPECT_LT(cycles, static_cast<std::uint64_t>(kBurst));
+  EXPECT_LE(static_cast<double>(cycles), elapsed_s * kRateHz + 1.0) << "at most at rate_hz";
+  // Each cloud the node read either started (or joined) a cycle or was replaced by a newer one.
+  EXPECT_EQ(after->clouds_received - before->clouds_received,
+            cycles + (after->clouds_coalesced - before->clouds_coalesced));
+  EXPECT_GT(after->clouds_coalesced, before->clouds_coalesced);
+  for (std::size_t i = contacts_before + 1; i < contacts_.size(); ++i) {
+    EXPECT_GT(contacts_[i]->header.stamp, contacts_[i - 1]->header.stamp) << "newest cloud first";
+  }
+}
+
+TEST_F(CycleOnCloudsTest, AFloat64CloudFarFromTheOriginComesBackFloat64Unchanged) {
+  Points far = grid(5, 5, 5, 0.02, {1e5 + 0.1234567, -2.5, 0.75});
+  PointCloud2 cloud;
+  writeCloudPoints(far, cloud, sensor_msgs::PointField::FLOAT64);
+  cloud.header.frame_id = "world";
+  cloud.header.stamp = ros::Time::now();
+  inputs_["far"].publish(cloud);
+  const PointCloud2::ConstPtr deformed = waitForStamp(far_, cloud.header.stamp);
+  ASSERT_NE(deformed, nullptr);
+  for (const sensor_msgs::PointField& field : deformed->fields) {
+    EXPECT_EQ(field.datatype, sensor_msgs::PointField::FLOAT64) << field.name;
+  }
+  Points published;
+  ASSERT_TRUE(readCloudPoints(*deformed, NonFinitePoints::kKeepAsNaN, 1 << 20, published).ok());
+  ASSERT_EQ(published.size(), far.size());
+  for (std::size_t i = 0; i < far.size(); ++i) {
+    EXPECT_LE((published[i] - far[i]).norm(), 1e-9 * far[i].norm()) << i;
+  }
+  // The probe's clouds are FLOAT32, and so is its output.
+  ASSERT_TRUE(waitFor([&] { return !probe_.empty(); }));
+  EXPECT_EQ(probe_.back()->fields[0].datatype, sensor_msgs::PointField::FLOAT32);
+}
+
+TEST_F(CycleOnCloudsTest, StatsSummariseTheLatenciesOfAPeriod) {
+  const Stats::ConstPtr before = waitForStats(contacts_.back()->header.stamp);
+  ASSERT_NE(before, nullptr);
+  Stats::ConstPtr summary;
+  double shift_m = 0.0;
+  // Clouds until the node closes a latency period that holds some of them.
+  ASSERT_TRUE(waitFor([&] {
+    const ros::Time stamp = ros::Time::now();
+    shift_m += 1e-4;
+    if (!publishProbe(shift_m, stamp)) return false;
+    summary = waitForStats(stamp);
+    return summary && summary->latency_periods > before->latency_periods + 1 &&
+           summary->latency_clouds > 0;
+  }));
+  EXPECT_GE(summary->latency_period_s, 1.0);
+  EXPECT_GT(summary->arrival_latency_mean_ms, 0.0);
+  EXPECT_LE(summary->arrival_latency_mean_ms, summary->arrival_latency_max_ms);
+  EXPECT_LE(summary->arrival_latency_p99_ms, summary->arrival_latency_max_ms);
+  EXPECT_GT(summary->stamp_latency_mean_ms, 0.0);
+  EXPECT_LE(summary->stamp_latency_p99_ms, summary->stamp_latency_max_ms);
+  // A cloud is stamped before it is sent, so it is older by its stamp than by its arrival.
+  EXPECT_GE(summary->stamp_latency_max_ms, summary->arrival_latency_max_ms);
+}
+
+}  // namespace
+}  // namespace test
+}  // namespace deformable_collision
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_cycle_on_clouds");
+  ros::NodeHandle handle;
+  return RUN_ALL_TESTS();
+}
