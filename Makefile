@@ -11,9 +11,11 @@ RVIZ ?= 0
 DEMO_ARGS ?=
 FUZZ_SECONDS ?= 300
 LOAD_SECONDS ?= 300
+LATENCY_S3_SECONDS ?= 30
+LATENCY_LOAD_SECONDS ?= 60
 SCENE ?= gripper
 
-.PHONY: deps build test fuzz load demo bench screenshot clean
+.PHONY: deps build test fuzz load latency demo bench screenshot clean
 
 deps:
 	@bash scripts/install_deps $(if $(filter 1,$(RVIZ)),rviz)
@@ -31,6 +33,13 @@ fuzz: build
 # 300 tracked objects, clouds at 30 Hz each, the node at 100 Hz, for LOAD_SECONDS.
 load: build
 	@bash scripts/run_load_test "$(WORKSPACE)" "$(LOAD_SECONDS)"
+
+# bench/results/latency.md: cloud arrival to contacts published, S3 through the node for
+# LATENCY_S3_SECONDS per mode (cycle_on: clouds, timer), the load test for
+# LATENCY_LOAD_SECONDS per mode.
+latency: build
+	@bash scripts/run_latency "$(WORKSPACE)" bench/results/latency.md "$(LATENCY_S3_SECONDS)" \
+	  "$(LATENCY_LOAD_SECONDS)"
 
 demo: build
 	@RVIZ=$(RVIZ) bash scripts/run_demo "$(WORKSPACE)" $(DEMO_ARGS)
