@@ -74,12 +74,15 @@ struct StatsRecord {
   LatencyPeriods latency_periods;
   std::size_t cycles = 0;
   ros::WallTime first_cycle;
+  /// The figures leave out the cycles of this long after the first (objects being made).
+  double warmup_s = 0.0;
 
   void add(const deformable_collision::Stats& stats) {
     if (stats.objects == 0) return;
     if (cycles == 0) first_cycle = ros::WallTime::now();
     ++cycles;
     last = stats;
+    if ((ros::WallTime::now() - first_cycle).toSec() < warmup_s) return;
     shape_matching.add(stats.shape_matching_ms);
     detection.add(stats.detection_ms);
     response.add(stats.response_ms);
@@ -235,8 +238,12 @@ void printLatencies(StatsRecord& record) {
 
 void printReport(StatsRecord& record, double duration_s) {
   const deformable_collision::Stats& last = record.last;
-  std::printf("\n=== deformable_collision demo report (%.1f s, %zu cycles) ===\n", duration_s,
-              record.cycles);
+  std::printf("\n=== deformable_collision demo report (%.1f s, %zu cycles", duration_s, record.cycles);
+  if (record.warmup_s > 0.0) {
+    std::printf("; figures from %zu cycles after a warm-up of %.1f s", record.cycle.count,
+                record.warmup_s);
+  }
+  std::printf(") ===\n");
   std::printf("objects %u, points %u, level of detail %u of %u (leaves)\n", last.objects,
               last.points, last.level, last.max_level);
   std::printf("per cycle, mean / max ms: shape matching %.3f / %.3f, detection %.3f / %.3f, "
@@ -267,6 +274,7 @@ int main(int argc, char** argv) {
   ros::NodeHandle node_handle(node);
 
   StatsRecord record;
+  record.warmup_s = private_handle.param("warmup_s", 0.0);
   ros::Subscriber stats_subscriber = node_handle.subscribe<deformable_collision::Stats>(
       "stats", 100, boost::function<void(const deformable_collision::Stats::ConstPtr&)>(
                         [&record](const deformable_collision::Stats::ConstPtr& stats) {
