@@ -7,9 +7,10 @@
 //   bench_registration [--points N] [--frames F] [--mode rigid|linear|quadratic]
 //                      [--clusters K] [--iterations I] [--cloud-points C] [--model-points M]
 //                      [--method ours|pcl_icp|pcl_icp_clusters|model_limit] [--static 1]
-//                      [--cloud camera|truth]
+//                      [--cloud camera|truth] [--exclude-near-jaws 0|1]
 //
-// --method: ours is CloudRegistration; pcl_icp is PCL's rigid ICP of the whole model, and
+// --method: ours is Scene::registerCloud of the sponge in a scene with the jaws, which leaves
+// out the cloud's points near the jaws (--exclude-near-jaws 0 keeps them); pcl_icp is PCL's rigid ICP of the whole model, and
 // pcl_icp_clusters of each of the body's K clusters alone, on the same thinned clouds with
 // the same rounds and largest match distance (PclIcpRegistration); --model-points is ours
 // alone, PCL matches to every rest point of a part.
@@ -57,6 +58,18 @@ using deformable_collision::RegistrationConfig;
 using deformable_collision::ShapeMatchingBody;
 using deformable_collision::ShapeMatchingConfig;
 
+using deformable_collision::JawSide;
+using deformable_collision::ObjectConfig;
+using deformable_collision::ObjectKind;
+using deformable_collision::Scene;
+using deformable_collision::SceneConfig;
+using deformable_collision::SceneContact;
+
+/// The contact distance of the scenes of the sponge and the jaws.
+constexpr double kContactDistanceM = 0.005;
+
+const char* jawName(JawSide side) { return side == JawSide::kLeft ? "left_jaw" : "right_jaw"; }
+
 struct Settings {
   std::size_t points = 20000;
   int frames = 100;
@@ -81,26 +94,18 @@ struct Errors {
   std::size_t missed = 0, spurious = 0;  ///< Jaw-frames touched by the truth or the model alone.
 };
 
-using deformable_collision::JawSide;
-using deformable_collision::ObjectConfig;
-using deformable_collision::ObjectKind;
-using deformable_collision::Scene;
-using deformable_collision::SceneConfig;
-using deformable_collision::SceneContact;
-
 /// The sponge and the two jaws in a scene of their own: the sponge's contacts with each jaw
 /// for its points from anywhere (the ground truth, a registration).
 class JawContacts {
  public:
   JawContacts(const CameraGripperScene& scene, const ShapeMatchingConfig& shape) {
     SceneConfig config;
-    config.contact_distance_m = 0.005;
+    config.contact_distance_m = kContactDistanceM;
     scene_ = std::make_unique<Scene>(config);
-    ObjectConfig sponge{"sponge", ObjectKind::kTracked, shape};
-    sponge_ = scene_->addObject(sponge, scene.restModel());
+    sponge_ = scene_->addObject({"sponge", ObjectKind::kTracked, shape}, scene.restModel());
     for (const JawSide side : {JawSide::kLeft, JawSide::kRight}) {
-      ObjectConfig jaw{side == JawSide::kLeft ? "left_jaw" : "right_jaw", ObjectKind::kKinematic, {}};
-      jaws_[static_cast<int>(side)] = scene_->addObject(jaw, scene.jawPoints());
+      jaws_[static_cast<int>(side)] =
+          scene_->addObject({jawName(side), ObjectKind::kKinematic, {}}, scene.jawPoints());
     }
   }
 
@@ -162,22 +167,42 @@ class Registrar {
                                     const Eigen::Vector3d& viewpoint_m) = 0;
   /// The model's points in the world frame, in model order.
   virtual const std::vector<Eigen::Vector3d>& positions() const = 0;
+  /// Places what else a registration knows of at `time_s` (the jaws), before its cloud.
+  virtual void placeSurroundings(const CameraGripperScene& /*scene*/, double /*time_s*/) {}
 };
 
+/// Ours as a node runs it: Scene::registerCloud on the sponge, a tracked object of a scene
+/// that also holds the jaws, posed before each cloud.
 class OursRegistrar : public Registrar {
  public:
-  OursRegistrar(ShapeMatchingBody body, const Settings& s)
-      : body_(std::move(body)), registration_(s.registration), leave_in_place_(s.leave_in_place) {}
+  OursRegistrar(const CameraGripperScene& scene, const ShapeMatchingConfig& shape, const Settings& s)
+      : leave_in_place_(s.leave_in_place) {
+    SceneConfig config;
+    config.contact_distance_m = kContactDistanceM;
+    config.registration = s.registration;
+    scene_ = std::make_unique<Scene>(config);
+    sponge_ = scene_->addObject({"sponge", ObjectKind::kTracked, shape}, scene.restModel());
+    for (const JawSide side : {JawSide::kLeft, JawSide::kRight}) {
+      jaws_[static_cast<int>(side)] =
+          scene_->addObject({jawName(side), ObjectKind::kKinematic, {}}, scene.jawPoints());
+    }
+  }
+  void placeSurroundings(const CameraGripperScene& scene, double time_s) override {
+    for (const JawSide side : {JawSide::kLeft, JawSide::kRight}) {
+      scene_->setPose(jaws_[static_cast<int>(side)], scene.jawPose(side, time_s));
+    }
+  }
   std::size_t registerCloud(const std::vector<Eigen::Vector3d>& cloud_m,
                             const Eigen::Vector3d& viewpoint_m) override {
     if (leave_in_place_) return 0;
-    return registration_.registerCloud(body_, cloud_m, viewpoint_m).held ? 1 : 0;
+    return scene_->registerCloud(sponge_, cloud_m, viewpoint_m).held ? 1 : 0;
   }
-  const std::vector<Eigen::Vector3d>& positions() const override { return body_.positions(); }
+  const std::vector<Eigen::Vector3d>& positions() const override { return scene_->body(sponge_).positions(); }
 
  private:
-  ShapeMatchingBody body_;
-  CloudRegistration registration_;
+  std::unique_ptr<Scene> scene_;
+  std::size_t sponge_ = 0;
+  std::size_t jaws_[2] = {0, 0};
   bool leave_in_place_;
 };
 
@@ -272,6 +297,7 @@ Settings parse(int argc, char** argv) {
     else if (key == "--method") s.method = value;
     else if (key == "--static") s.leave_in_place = std::atoi(value) != 0;
     else if (key == "--cloud") s.truth_cloud = std::string(value) == "truth";
+    else if (key == "--exclude-near-jaws") s.registration.exclude_near_other_objects = std::atoi(value) != 0;
     else usageError("unknown option " + key);
   }
   if (s.method != "ours" && s.method != "pcl_icp" && s.method != "pcl_icp_clusters" &&
@@ -287,8 +313,8 @@ std::unique_ptr<Registrar> makeRegistrar(const Settings& s, const CameraGripperS
   ShapeMatchingConfig shape;
   shape.mode = *deformable_collision::parseDeformationMode(s.mode);
   shape.clusters = s.clusters;
+  if (s.method == "ours") return std::make_unique<OursRegistrar>(scene, shape, s);
   ShapeMatchingBody body(rest_points, shape);
-  if (s.method == "ours") return std::make_unique<OursRegistrar>(std::move(body), s);
   if (s.method == "model_limit") return std::make_unique<ModelLimitRegistrar>(std::move(body), scene);
   std::vector<std::vector<std::uint32_t>> parts;
   if (s.method == "pcl_icp") {
@@ -348,6 +374,7 @@ Errors run(const Settings& s) {
     } else {
       for (const auto& p : scene.cloud()) cloud.push_back(camera * p.cast<double>());
     }
+    registrar->placeSurroundings(scene, time_s);
     const auto start = std::chrono::steady_clock::now();
     errors.held += registrar->registerCloud(cloud, camera.translation());
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

@@ -227,8 +227,9 @@ struct CloudRegistration::Workspace {
   std::vector<Eigen::Vector3d> goals;          ///< Per model point, once the fits are done.
 
   void layOut(const ShapeMatchingBody& body, std::size_t max_model_points);
+  /// The thinned finite cloud into `samples`, without what `filter` excludes.
   void sampleCloud(const std::vector<Eigen::Vector3d>& cloud, std::size_t max_samples,
-                   std::size_t& finite_count);
+                   CloudPointFilter* filter, RegistrationReport& report);
   /// Places the matching points by the clusters' fits and builds the tree over those that
   /// face `viewpoint` (all of them without one).
   void placeMatchingPoints(const std::optional<Eigen::Vector3d>& viewpoint);
@@ -296,8 +297,9 @@ void CloudRegistration::Workspace::layOut(const ShapeMatchingBody& body,
 }
 
 void CloudRegistration::Workspace::sampleCloud(const std::vector<Eigen::Vector3d>& cloud,
-                                               std::size_t max_samples,
-                                               std::size_t& finite_count) {
+                                               std::size_t max_samples, CloudPointFilter* filter,
+                                               RegistrationReport& report) {
+  std::size_t& finite_count = report.cloud_points;
   finite_count = 0;
   for (const auto& p : cloud) finite_count += p.allFinite() ? 1 : 0;
   // Every stride-th finite point: evenly over the cloud's order, which for a camera's cloud
@@ -307,7 +309,12 @@ void CloudRegistration::Workspace::sampleCloud(const std::vector<Eigen::Vector3d
   std::size_t seen = 0;
   for (const auto& p : cloud) {
     if (!p.allFinite()) continue;
-    if (seen++ % stride == 0) samples.push_back(p);
+    if (seen++ % stride != 0) continue;
+    if (filter && filter->excludes(p)) {
+      ++report.excluded_points;
+    } else {
+      samples.push_back(p);
+    }
   }
   match_of_sample.resize(samples.size());
   distance_of_sample.resize(samples.size());
@@ -540,7 +547,7 @@ void CloudRegistration::Workspace::measureResiduals(double threshold,
 
 RegistrationReport CloudRegistration::registerCloud(
     ShapeMatchingBody& body, const std::vector<Eigen::Vector3d>& cloud_m,
-    const std::optional<Eigen::Vector3d>& viewpoint_m) {
+    const std::optional<Eigen::Vector3d>& viewpoint_m, CloudPointFilter* filter) {
   const auto start = Clock::now();
   Workspace& w = *workspace_;
   if (w.laid_out_for != body.restPositions().data() || w.laid_out_size != body.pointCount()) {
@@ -551,7 +558,7 @@ RegistrationReport CloudRegistration::registerCloud(
     w.fits[k] = {deformation.transform, deformation.translation, deformation.rotation};
   }
   RegistrationReport report;
-  w.sampleCloud(cloud_m, config_.max_cloud_points, report.cloud_points);
+  w.sampleCloud(cloud_m, config_.max_cloud_points, filter, report);
   const double needed = std::max(1.0, config_.min_match_ratio * static_cast<double>(w.samples.size()));
   double threshold = 0.0;
   int rounds_done = 0;

@@ -26,6 +26,19 @@ struct RegistrationConfig {
   /// Fewer matches than this fraction of the thinned cloud means the cloud does not show
   /// the object: the model is held where it was ([0, 1]).
   double min_match_ratio = 0.2;
+  /// Scene::registerCloud: a cloud point closer than the scene's contact distance to another
+  /// object of the scene (the gripper's jaws, the table) is that object's, not this one's,
+  /// and is left out.
+  bool exclude_near_other_objects = true;
+};
+
+/// Tells the cloud points that belong to something else than the registered object.
+class CloudPointFilter {
+ public:
+  virtual bool excludes(const Eigen::Vector3d& point_m) = 0;
+
+ protected:
+  ~CloudPointFilter() = default;
 };
 
 /// @throw std::invalid_argument naming the first bad value of `config`.
@@ -37,6 +50,8 @@ struct RegistrationReport {
   std::size_t cloud_points = 0;      ///< Finite points of the cloud.
   std::size_t used_points = 0;       ///< Thinned cloud points matched in the last round.
   std::size_t rejected_points = 0;   ///< Thinned cloud points left out in the last round.
+  /// Thinned cloud points the filter said were not the object's (left out of the above).
+  std::size_t excluded_points = 0;
   double mean_residual_m = 0.0;      ///< Over the used points, from the final model.
   double max_residual_m = 0.0;       ///< Over the used points, from the final model.
   double time_ms = 0.0;              ///< Steady-clock time of the whole registration.
@@ -69,9 +84,11 @@ class CloudRegistration {
   /// another object's, far away) leaves the body unchanged and says so in `held`.
   /// Steady state (the same body, clouds no larger than before) allocates only inside the
   /// kd-tree library.
+  /// `filter`, if given, leaves out the thinned cloud points it excludes.
   RegistrationReport registerCloud(ShapeMatchingBody& body,
                                    const std::vector<Eigen::Vector3d>& cloud_m,
-                                   const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
+                                   const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt,
+                                   CloudPointFilter* filter = nullptr);
 
   const RegistrationConfig& config() const { return config_; }
 

@@ -148,23 +148,6 @@ std::size_t Scene::observe(std::size_t object, const std::vector<Eigen::Vector3d
   return unobserved;
 }
 
-RegistrationReport Scene::registerCloud(std::size_t object,
-                                       const std::vector<Eigen::Vector3d>& cloud_m,
-                                       const std::optional<Eigen::Vector3d>& viewpoint_m) {
-  Object& o = *objects_.at(object);
-  if (o.config.kind != ObjectKind::kTracked) {
-    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
-                                ", only tracked objects are registered to clouds");
-  }
-  if (!o.registration) o.registration.emplace(config_.registration);
-  const RegistrationReport report = o.registration->registerCloud(o.body, cloud_m, viewpoint_m);
-  if (!report.held) {
-    o.stale = true;
-    ++stats_.objects_moved;
-  }
-  return report;
-}
-
 void Scene::cycle() {
   const std::size_t moved_before = stats_.objects_moved;
   stats_ = CycleStats{};

@@ -165,6 +165,12 @@ class Scene {
                                      std::vector<Eigen::Vector3d> rest_points_m) const;
   void refreshStaleTrees();
 
+  // Registration of a tracked object's clouds (scene_registration.cpp).
+  struct NearOtherObjects;
+  /// Whether a point of an object other than `object` lies closer than `distance_m` to
+  /// `point_m`, on the objects' current state.
+  bool nearOtherObject(std::size_t object, const Eigen::Vector3d& point_m, double distance_m);
+
   // The broad phase (scene_broad_phase.cpp).
   void sweepAndPrune();
   void updateSweepBoxes();
@@ -248,6 +254,7 @@ class Scene {
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
+  std::vector<std::uint32_t> proximity_stack_;  ///< Nodes nearOtherObject still has to visit.
   QueryCounters query_counters_;
   CycleStats stats_;
   std::uint64_t cycle_count_ = 1;

@@ -342,6 +342,117 @@ TEST(SceneRegistration, FindsContactsOnTheHiddenSide) {
 }
 
 // A model taken from a camera's first cloud is as noisy as the camera: it still registers.
+/// A plate of points on a 2 mm grid: x and z within `half_x` and `half_z`, y from `y_min`
+/// to `y_max` (its faces and inside, every 2 mm).
+Points plate(double half_x, double half_z, double y_min, double y_max) {
+  Points points;
+  for (double x = -half_x; x <= half_x + 1e-9; x += 0.002) {
+    for (double z = -half_z; z <= half_z + 1e-9; z += 0.002) {
+      for (double y = y_min; y <= y_max + 1e-9; y += 0.002) points.emplace_back(x, y, z);
+    }
+  }
+  return points;
+}
+
+// A cloud point closer than the contact distance to another object is left out, exactly:
+// the report counts them, and the model ends where a scene without the other object puts
+// it for the cloud without them. Without exclude_near_other_objects every point is used.
+TEST(SceneRegistration, LeavesOutCloudPointsNearOtherObjects) {
+  SceneConfig config;
+  config.contact_distance_m = 0.005;
+  const Points model = boxSurface(3000, 31).points;
+  const Points other = plate(0.02, 0.014, kHalfExtents.y() + 0.01, kHalfExtents.y() + 0.01);
+  // The sponge seen from one side, and the other object's points 1 mm and 7 mm off it.
+  Points cloud = cloudOf(rigidMotion, 0.1, 1500, kOneSide, 0.001, 0.0, 32);
+  std::size_t near = 0;
+  for (const Eigen::Vector3d& p : other) {
+    cloud.push_back(p + Eigen::Vector3d(0.0, 0.001, 0.0));
+    cloud.push_back(p + Eigen::Vector3d(0.0, 0.007, 0.0));
+  }
+  Points kept;
+  for (const Eigen::Vector3d& p : cloud) {
+    if (!p.allFinite()) continue;
+    bool close = false;
+    for (const Eigen::Vector3d& q : other) close = close || (p - q).norm() < config.contact_distance_m;
+    near += close ? 1 : 0;
+    if (!close) kept.push_back(p);
+  }
+  ASSERT_LT(cloud.size(), config.registration.max_cloud_points) << "no thinning";
+  ASSERT_EQ(near, other.size()) << "the points 1 mm off the plate, not those 7 mm off";
+  const Eigen::Vector3d camera = 0.5 * kOneSide.normalized();
+  const auto registered = [&](bool exclude, bool with_other, const Points& seen,
+                              RegistrationReport& report) {
+    SceneConfig scene_config = config;
+    scene_config.registration.exclude_near_other_objects = exclude;
+    Scene scene(scene_config);
+    const std::size_t sponge = scene.addObject({"sponge", ObjectKind::kTracked, {}}, model);
+    if (with_other) {
+      const std::size_t plate_index = scene.addObject({"plate", ObjectKind::kKinematic, {}}, other);
+      scene.setPose(plate_index, Eigen::Isometry3d::Identity());
+    }
+    report = scene.registerCloud(sponge, seen, camera);
+    return scene.body(sponge).positions();
+  };
+  RegistrationReport filtered, reference, unfiltered;
+  const Points filtered_positions = registered(true, true, cloud, filtered);
+  EXPECT_EQ(filtered.excluded_points, near);
+  EXPECT_EQ(filtered.cloud_points, kept.size() + near);
+  EXPECT_EQ(filtered_positions, registered(true, false, kept, reference));
+  EXPECT_EQ(filtered.used_points, reference.used_points);
+  const Points unfiltered_positions = registered(false, true, cloud, unfiltered);
+  EXPECT_EQ(unfiltered.excluded_points, 0u);
+  EXPECT_NE(unfiltered_positions, filtered_positions);
+}
+
+// A jaw squeezing the sponge hides the face it presses, and its own outer face lies about
+// where that face was: taken for the sponge, it holds the model's face out. Left out, the
+// model follows what the camera sees of the sponge.
+TEST(SceneRegistration, AJawsPointsDoNotHoldTheModelOut) {
+  SceneConfig config;
+  config.contact_distance_m = 0.005;
+  constexpr double kPress = 0.004;  // The sponge moves 4 mm away from the camera's side, into the jaw's place.
+  const auto moved = [](const Eigen::Vector3d& p, double amount) {
+    return Eigen::Vector3d(p + Eigen::Vector3d(0.0, -kPress * amount, 0.0));
+  };
+  // The jaw's plate, 6 mm thick, from the moved sponge's +y face (now at h - 4 mm) outwards.
+  const Points jaw = plate(0.04, 0.03, kHalfExtents.y() - kPress, kHalfExtents.y() + 0.002);
+  // The camera sees the sponge's top and its -y side (the +y side is the jaw's), and the
+  // jaw's outer face and top.
+  const Eigen::Vector3d view(0.3, -1.0, 2.0);
+  const Eigen::Vector3d camera = 0.5 * view.normalized();
+  Points jaw_seen;
+  for (const Eigen::Vector3d& p : jaw) {
+    if (p.y() > kHalfExtents.y() + 0.001 || p.z() > 0.029) jaw_seen.push_back(p);
+  }
+  const Points model = boxSurface(3000, 51).points;
+  const auto meanError = [&](bool exclude) {
+    SceneConfig scene_config = config;
+    scene_config.registration.exclude_near_other_objects = exclude;
+    Scene scene(scene_config);
+    ObjectConfig sponge_config{"sponge", ObjectKind::kTracked, {}};
+    sponge_config.shape.mode = DeformationMode::kRigid;
+    const std::size_t sponge = scene.addObject(sponge_config, model);
+    const std::size_t jaw_index = scene.addObject({"jaw", ObjectKind::kKinematic, {}}, jaw);
+    scene.setPose(jaw_index, Eigen::Isometry3d::Identity());
+    for (int frame = 1; frame <= 5; ++frame) {
+      Points cloud = cloudOf(moved, frame / 5.0, 3000, view, 0.0005, 0.0, 52 + frame);
+      cloud.insert(cloud.end(), jaw_seen.begin(), jaw_seen.end());
+      EXPECT_FALSE(scene.registerCloud(sponge, cloud, camera).held);
+    }
+    double sum = 0.0;
+    for (std::size_t i = 0; i < model.size(); ++i) {
+      sum += (scene.body(sponge).positions()[i] - moved(model[i], 1.0)).norm();
+    }
+    return sum / static_cast<double>(model.size());
+  };
+  const double with_jaw_points = meanError(false);
+  const double without = meanError(true);
+  std::printf("[ MEASURED ] mean error of the pressed sponge: %.2f mm with the jaw's points, "
+              "%.2f mm without\n", 1e3 * with_jaw_points, 1e3 * without);
+  EXPECT_LT(without, 0.5e-3);
+  EXPECT_GT(with_jaw_points, 1e-3) << "the jaw's points must have held the model out";
+}
+
 TEST(NoisyModel, RegistersLaterClouds) {
   const Points model = cloudOf(rigidMotion, 0.0, 4000, kOneSide, 0.001, 0.0, 41);
   Points finite;
