@@ -275,6 +275,8 @@ void readRegistration(const XmlRpcValue& block, RegistrationConfig& registration
       "max_model_points", static_cast<long>(registration.max_model_points), 1, kLargestCount));
   registration.min_match_ratio =
       read.number("min_match_ratio", registration.min_match_ratio, 0.0, 1.0);
+  registration.exclude_near_other_objects =
+      read.flag("exclude_near_other_objects", registration.exclude_near_other_objects);
   read.finish();
 }
 

@@ -106,6 +106,7 @@ void DeformableCollisionNode::fillRegistrationStats(Stats& stats) const {
     out.cloud_points = static_cast<std::uint32_t>(report.cloud_points);
     out.used_points = static_cast<std::uint32_t>(report.used_points);
     out.rejected_points = static_cast<std::uint32_t>(report.rejected_points);
+    out.excluded_points = static_cast<std::uint32_t>(report.excluded_points);
     out.mean_residual_m = report.mean_residual_m;
     out.max_residual_m = report.max_residual_m;
     out.time_ms = report.time_ms;

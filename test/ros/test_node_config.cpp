@@ -182,6 +182,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"ZeroCloudPoints", [](XmlRpcValue& p) { p["register"]["max_cloud_points"] = 0; }, "register.max_cloud_points = 0 must be in [1, "},
         BadParamCase{"ZeroModelPoints", [](XmlRpcValue& p) { p["register"]["max_model_points"] = 0; }, "register.max_model_points = 0 must be in [1, "},
         BadParamCase{"NegativeMatchRatio", [](XmlRpcValue& p) { p["register"]["min_match_ratio"] = -0.1; }, "register.min_match_ratio = -0.1 must be in [0, 1]"},
+        BadParamCase{"ExcludeNearObjectsAsNumber", [](XmlRpcValue& p) { p["register"]["exclude_near_other_objects"] = 1; }, "register.exclude_near_other_objects must be true or false, got an integer"},
         BadParamCase{"MatchRatioAboveOne", [](XmlRpcValue& p) { p["register"]["min_match_ratio"] = 1.5; }, "register.min_match_ratio = 1.5 must be in [0, 1]"},
         BadParamCase{"MisspeltRegister", [](XmlRpcValue& p) { p["register"]["iteration"] = 3; }, "register.iteration is not a known parameter"},
         BadParamCase{"UnknownCycleOn", [](XmlRpcValue& p) { p["cycle_on"] = "sometimes"; }, "cycle_on = 'sometimes' must be timer or clouds"},
@@ -334,6 +335,7 @@ TEST(NodeConfig, RegisteredObjectsAreTrackedWithTheirModelAndTheRegisterBlock) {
   params["register"]["max_cloud_points"] = 1500;
   params["register"]["max_model_points"] = 4000;
   params["register"]["min_match_ratio"] = 1;
+  params["register"]["exclude_near_other_objects"] = false;
   const NodeConfig config = parseWithoutWarnings(params);
   ASSERT_EQ(config.objects.size(), 6u);
   for (std::size_t i = 3; i < 6; ++i) {
@@ -352,6 +354,7 @@ TEST(NodeConfig, RegisteredObjectsAreTrackedWithTheirModelAndTheRegisterBlock) {
   EXPECT_EQ(registration.max_cloud_points, 1500u);
   EXPECT_EQ(registration.max_model_points, 4000u);
   EXPECT_DOUBLE_EQ(registration.min_match_ratio, 1.0);
+  EXPECT_FALSE(registration.exclude_near_other_objects);
 }
 
 TEST(NodeConfig, RegisterBlockDefaultsAreTheCores) {
@@ -363,6 +366,7 @@ TEST(NodeConfig, RegisterBlockDefaultsAreTheCores) {
   EXPECT_EQ(read.max_correspondence_m, core.max_correspondence_m);
   EXPECT_EQ(read.max_cloud_points, core.max_cloud_points);
   EXPECT_EQ(read.max_model_points, core.max_model_points);
+  EXPECT_EQ(read.exclude_near_other_objects, core.exclude_near_other_objects);
   EXPECT_EQ(read.min_match_ratio, 0.0);
   const RegistrationConfig absent = parseWithoutWarnings(validParams()).scene.registration;
   EXPECT_EQ(absent.min_match_ratio, core.min_match_ratio);
