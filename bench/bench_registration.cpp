@@ -52,14 +52,12 @@ namespace {
 
 using deformable_collision::CameraGripperConfig;
 using deformable_collision::CameraGripperScene;
-using deformable_collision::CloudRegistration;
 using deformable_collision::bench::PclIcpRegistration;
 using deformable_collision::RegistrationConfig;
 using deformable_collision::ShapeMatchingBody;
 using deformable_collision::ShapeMatchingConfig;
 
 using deformable_collision::JawSide;
-using deformable_collision::ObjectConfig;
 using deformable_collision::ObjectKind;
 using deformable_collision::Scene;
 using deformable_collision::SceneConfig;
