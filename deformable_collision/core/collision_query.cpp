@@ -16,6 +16,25 @@ Eigen::Vector3d directionFrom(const Eigen::Vector3d& b, const Eigen::Vector3d& a
   return length > 0.0 ? Eigen::Vector3d(d / length) : Eigen::Vector3d::UnitZ();
 }
 
+/// SphereContact::error_bound_m of a contact of two nodes above the leaves, from their
+/// spheres, which hold a closest pair (x, y) of their points: (x + y) / 2 lies within
+/// (r_a + r_b) / 2 of the centres' midpoint, from which `position` lies |r_b - r_a| / 2
+/// along the normal; |x - y| lies between the spheres' gap (or 0) and the centres' distance
+/// plus both radii, and the depth's error is at most its distance to the farther end.
+double nodeContactErrorBound(const Sphere& a, const Sphere& b, double depth_m,
+                             double contact_distance_m) {
+  const double centres_m = (a.center - b.center).norm();
+  const double least_distance_m = std::max(0.0, centres_m - a.radius - b.radius);
+  const double greatest_distance_m = centres_m + a.radius + b.radius;
+  const double depth_error_m = std::max(depth_m - (contact_distance_m - greatest_distance_m),
+                                        contact_distance_m - least_distance_m - depth_m);
+  const double bound_m = std::max({a.radius, b.radius, depth_error_m});
+  // The few sums above round by far less than this margin, even 1e5 m from the origin.
+  const double magnitude_m =
+      std::max(a.center.cwiseAbs().maxCoeff(), b.center.cwiseAbs().maxCoeff());
+  return bound_m + 1e-12 * (bound_m + magnitude_m);
+}
+
 /// A leaf's points as coordinate arrays: its columns of the tree's leafPositions().
 struct LeafPoints {
   std::uint32_t first_slot;
@@ -120,6 +139,8 @@ struct ClosestPair {
   contact.position = 0.5 * (x + y);
   contact.normal = directionFrom(y, x);
   contact.depth_m = contact_distance_m - std::sqrt(pair.squared_distance);
+  // Position and depth are those of a closest pair itself.
+  contact.error_bound_m = 0.0;
 }
 
 /// Adds the contact of the leaves at `leaf_a` and `leaf_b` in the trees' leaf orders if a
@@ -340,6 +361,7 @@ struct HierarchyQuery::Descent {
     const Eigen::Vector3d surface_b =
         sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
     contact.position = 0.5 * (surface_a + surface_b);
+    contact.error_bound_m = nodeContactErrorBound(sa, sb, contact.depth_m, contact_distance_m);
   }
 
   /// The contacts of a pair within reach at which the descent ends on both sides.

@@ -23,6 +23,14 @@ struct SphereContact {
   /// Overlap in metres with every sphere and point grown by contact_distance / 2;
   /// > 0 for every reported contact.
   double depth_m = 0.0;
+  /// How far the contact can be from the truth of its two nodes' points, in metres: for
+  /// every closest pair (x, y) of node_a's and node_b's points (their least distance D),
+  /// |position - (x + y) / 2| <= error_bound_m and |depth_m - (contact distance - D)| <=
+  /// error_bound_m. Above the leaves it follows from the spheres alone (every point lies in
+  /// its node's sphere, docs/design.md, "Error bound of a contact"), a few radii at most;
+  /// at the leaves it is 0: position is the midpoint of a closest pair and depth_m the
+  /// contact distance minus its length, both exact.
+  double error_bound_m = 0.0;
   std::uint32_t point_a = kNoPoint;  ///< Closest pair, at the leaf level only.
   std::uint32_t point_b = kNoPoint;
 };
