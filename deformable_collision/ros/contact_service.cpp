@@ -111,6 +111,7 @@ void fillContactArray(const Scene& scene, const std::vector<SceneContact>& conta
     to.normal.y = from.contact.normal.y();
     to.normal.z = from.contact.normal.z();
     to.depth = from.contact.depth_m;
+    to.error_bound_m = from.contact.error_bound_m;
   }
 }
 

@@ -128,6 +128,8 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
     check(std::isfinite(contact.depth) && std::isfinite(contact.position.x) &&
               std::isfinite(contact.position.y) && std::isfinite(contact.position.z),
           "a non-finite contact");
+    check(std::isfinite(contact.error_bound_m) && contact.error_bound_m >= 0.0,
+          "an error bound that is not finite and >= 0");
   }
 }
 

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "deformable_collision/scenes/demo_scenes.h"
 
@@ -128,9 +129,22 @@ TEST_F(ContactServiceTest, GetContactsAtANamedLevelAnswersAtThatLevel) {
     EXPECT_EQ(named.contacts.level, c.level);
     EXPECT_FALSE(named.contacts.contacts.empty());
     EXPECT_EQ(named.contacts.contacts, explicit_level.contacts.contacts);
-    for (const Contact& contact : named.contacts.contacts) {
+    std::vector<SceneContact> core;
+    scene_->contactsAt(c.level, std::nullopt, std::nullopt, core);
+    ASSERT_EQ(named.contacts.contacts.size(), core.size());
+    for (std::size_t k = 0; k < core.size(); ++k) {
+      const Contact& contact = named.contacts.contacts[k];
       EXPECT_NEAR(std::hypot(contact.normal.x, contact.normal.y, contact.normal.z), 1.0, 1e-9);
       EXPECT_TRUE(std::isfinite(contact.depth));
+      // The core's bound, carried as it is: 0 at the leaves, a sphere's radius or more above.
+      EXPECT_EQ(contact.error_bound_m, core[k].contact.error_bound_m);
+      EXPECT_TRUE(std::isfinite(contact.error_bound_m));
+      if (core[k].contact.point_a != SphereContact::kNoPoint) {
+        EXPECT_EQ(contact.error_bound_m, 0.0);
+      } else {
+        EXPECT_GE(contact.error_bound_m,
+                  scene_->currentSphere(core[k].object_a, core[k].contact.node_a).radius);
+      }
     }
     EXPECT_EQ(scene_->level(), 1);
   }

@@ -5,6 +5,7 @@
 #include <ros/ros.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 
+#include <cmath>
 #include <deque>
 #include <functional>
 #include <map>
@@ -159,6 +160,7 @@ TEST_F(NodeletTest, PublishesContactsBetweenTouchingObjects) {
     // From b to a: up when a is the probe, which lies above the floor.
     EXPECT_GT((c.object_a == "probe" ? 1.0 : -1.0) * c.normal.z, 0.5);
     EXPECT_NEAR(c.position.z, 0.005, 0.011);
+    EXPECT_EQ(c.error_bound_m, 0.0) << "the leaves' contacts are their closest point pairs";
   }
   EXPECT_GT(stats_->points, 0u);
   EXPECT_EQ(stats_->max_level, max_level_);
@@ -225,6 +227,9 @@ TEST_F(NodeletTest, GetContactsAnswersAtAnyLevelAndLeavesTheRunningOneAlone) {
     EXPECT_EQ(c.sphere_a, 0u);
     EXPECT_EQ(c.sphere_b, 0u);
     EXPECT_EQ(c.level, 0);
+    // The roots stand for whole objects: their contacts' bounds are finite and above 0.
+    EXPECT_TRUE(std::isfinite(c.error_bound_m));
+    EXPECT_GT(c.error_bound_m, 0.0);
     partners.insert(c.object_b);
   }
   EXPECT_EQ(partners.size(), roots.response.contacts.contacts.size()) << "one contact per pair";
