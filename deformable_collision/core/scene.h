@@ -184,6 +184,7 @@ class Scene {
     std::uint32_t object_b = 0;
     std::size_t begin = 0;
     std::size_t end = 0;
+    bool support_link = true;  ///< Whether rankSupport counts the pair (isSupportLink).
   };
   /// Appends the contacts at `level` and, if `runs` is given, each object pair's range of
   /// them.
@@ -196,6 +197,9 @@ class Scene {
   void respond();
   /// Counts each object's hops to a fixed one over touching objects (support_depth).
   void rankSupport();
+  /// Between a fixed and a dynamic object: whether the dynamic one lay on the touched
+  /// surface before this cycle's step. Between dynamic objects: true.
+  bool isSupportLink(const ContactRun& run);
   /// Once every pair is resolved: no object leaves moving into a fixed one it was pushed off.
   void stopApproachToFixedPartners();
   /// Moves a dynamic object by its pairs' pushes and dents it where they need more.
@@ -210,6 +214,8 @@ class Scene {
   struct FixedSurface;
   /// The surface of the fixed object's `node` that faces the dynamic one.
   FixedSurface fixedSurface(const ResolvingPair& pair, std::uint32_t node);
+  struct TouchedSurface;
+  TouchedSurface touchedSurface(const ResolvingPair& pair, const Eigen::Vector3d& away);
   bool pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& contact,
                           ContactPush& push);
   void clearPassedPoints(ResolvingPair& pair);

@@ -62,7 +62,9 @@ void Scene::rankSupport() {
   // Adjacency of the touching pairs (the contact runs), in compressed rows.
   const std::size_t count = objects_.size();
   neighbour_offsets_.assign(count + 1, 0);
-  for (const ContactRun& run : contact_runs_) {
+  for (ContactRun& run : contact_runs_) {
+    run.support_link = isSupportLink(run);
+    if (!run.support_link) continue;
     ++neighbour_offsets_[run.object_a + 1];
     ++neighbour_offsets_[run.object_b + 1];
   }
@@ -70,6 +72,7 @@ void Scene::rankSupport() {
   neighbours_.resize(neighbour_offsets_[count]);
   neighbour_fill_.assign(neighbour_offsets_.begin(), neighbour_offsets_.end() - 1);
   for (const ContactRun& run : contact_runs_) {
+    if (!run.support_link) continue;
     neighbours_[neighbour_fill_[run.object_a]++] = run.object_b;
     neighbours_[neighbour_fill_[run.object_b]++] = run.object_a;
   }
@@ -302,6 +305,41 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
   return true;
 }
 
+/// The fixed object's touched nodes seen along `away` (from the fixed object towards the
+/// dynamic one): the highest of their surfaces, and the region across `away` that their
+/// spheres cover, where a point of the dynamic object lies in line with them.
+struct Scene::TouchedSurface {
+  Eigen::Vector3d away;
+  Eigen::Vector3d across_u;
+  Eigen::Vector3d across_v;
+  Eigen::AlignedBox2d in_line;
+  double level = -std::numeric_limits<double>::infinity();
+
+  bool inLine(const Eigen::Vector3d& point) const {
+    return in_line.contains(Eigen::Vector2d(point.dot(across_u), point.dot(across_v)));
+  }
+};
+
+Scene::TouchedSurface Scene::touchedSurface(const ResolvingPair& pair,
+                                            const Eigen::Vector3d& away) {
+  const bool a_fixed = !pair.a.dynamic();
+  Object& fixed = a_fixed ? pair.a : pair.b;
+  TouchedSurface touched{away, away.unitOrthogonal(), Eigen::Vector3d::Zero(), {}};
+  touched.across_v = away.cross(touched.across_u);
+  for (std::size_t k = pair.run_begin; k < pair.run_end; ++k) {
+    const SphereContact& c = contacts_[k].contact;
+    const std::uint32_t node = a_fixed ? c.node_a : c.node_b;
+    const FixedSurface surface = fixedSurface(pair, node);
+    touched.level = std::max(touched.level, surface.plane_point.dot(away) + surface.reach);
+    const Sphere& sphere = fixed.tree.sphere(node);
+    const Eigen::Vector2d across(sphere.center.dot(touched.across_u),
+                                 sphere.center.dot(touched.across_v));
+    touched.in_line.extend(across - Eigen::Vector2d::Constant(sphere.radius));
+    touched.in_line.extend(across + Eigen::Vector2d::Constant(sphere.radius));
+  }
+  return touched;
+}
+
 // A long step carries points of a dynamic object past a thin fixed layer, beyond the
 // contact distance of any of its points, where no contact sees them; the contacts' pushes
 // then undo only about the layer's thickness of a step that took more. So the deepest of
@@ -311,29 +349,14 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
 void Scene::clearPassedPoints(ResolvingPair& pair) {
   const bool a_fixed = !pair.a.dynamic();
   const Object& moving = a_fixed ? pair.b : pair.a;
-  Object& fixed = a_fixed ? pair.a : pair.b;
-  const Eigen::Vector3d away = (a_fixed ? -1.0 : 1.0) * pair.normal_sum.normalized();
-  const Eigen::Vector3d across_u = away.unitOrthogonal();
-  const Eigen::Vector3d across_v = away.cross(across_u);
-  Eigen::AlignedBox2d in_line;
-  double surface_level = -std::numeric_limits<double>::infinity();
-  for (std::size_t k = pair.run_begin; k < pair.run_end; ++k) {
-    const SphereContact& c = contacts_[k].contact;
-    const std::uint32_t node = a_fixed ? c.node_a : c.node_b;
-    const FixedSurface surface = fixedSurface(pair, node);
-    surface_level = std::max(surface_level, surface.plane_point.dot(away) + surface.reach);
-    const Sphere& sphere = fixed.tree.sphere(node);
-    const Eigen::Vector2d across(sphere.center.dot(across_u), sphere.center.dot(across_v));
-    in_line.extend(across - Eigen::Vector2d::Constant(sphere.radius));
-    in_line.extend(across + Eigen::Vector2d::Constant(sphere.radius));
-  }
+  const TouchedSurface touched =
+      touchedSurface(pair, (a_fixed ? -1.0 : 1.0) * pair.normal_sum.normalized());
+  const Eigen::Vector3d& away = touched.away;
   double lowest = std::numeric_limits<double>::infinity();
   for (const Eigen::Vector3d& point : moving.body.positions()) {
-    if (in_line.contains(Eigen::Vector2d(point.dot(across_u), point.dot(across_v)))) {
-      lowest = std::min(lowest, point.dot(away));
-    }
+    if (touched.inLine(point)) lowest = std::min(lowest, point.dot(away));
   }
-  const double depth = surface_level + 0.5 * config_.contact_distance_m - lowest -
+  const double depth = touched.level + 0.5 * config_.contact_distance_m - lowest -
                        moving.translation.dot(away);
   double deepest_push = 0.0;
   for (const ContactPush& push : pushes_) deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
@@ -475,6 +498,10 @@ void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& norma
 // velocity friction. Only where one side holds (fixed, or nearer to a support): between two
 // objects carried alike, taking the slip back moves both against supports this pass does
 // not see, and a bar leaning on a ball would lift the ball off the floor.
+// A sticking pair separates back along the way it came together (the step and the pushes
+// before this pair), not along the normal: a coarse normal between two dynamic objects
+// tilts by some degrees, and a box in a stack, lifted a little along it each cycle and
+// falling back straight, would walk off the box below.
 void Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
                                double share_a) const {
   const Object& a = pair.a;
@@ -488,10 +515,57 @@ void Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& norma
   const Eigen::Vector3d slip = moved - moved.dot(normal) * normal;
   const double pressed = (pair.move_a - pair.move_b).dot(normal);
   const bool one_side_holds = share_a == 0.0 || share_a == 1.0;
-  if (one_side_holds && slip.norm() <= config_.friction * pressed) {
-    pair.move_a -= share_a * slip;
-    pair.move_b += (1.0 - share_a) * slip;
+  if (!one_side_holds || slip.norm() > config_.friction * pressed) return;
+  const Eigen::Vector3d came =
+      (step_b + pair.translation_before_b) - (step_a + pair.translation_before_a);
+  const double came_along = came.dot(normal);
+  Eigen::Vector3d change = -slip;
+  if (came_along > 0.0 && (came - came_along * normal).norm() <= config_.friction * came_along) {
+    change = moved.dot(normal) / came_along * came - moved;
   }
+  pair.move_a += share_a * change;
+  pair.move_b -= (1.0 - share_a) * change;
+}
+
+// Whether a run links its objects in rankSupport. Between dynamic objects always; between a
+// fixed object and a dynamic one when the fixed one carries it: when the dynamic object lay
+// within the contact distance of the touched surface before this cycle's step. After a long
+// step, an object high in a stack may have come within reach of the floor only because the
+// objects under it sank into the floor in the same step; counted as carried by the floor it
+// would share its pushes with them and drive them further in.
+bool Scene::isSupportLink(const ContactRun& run) {
+  Object& a = *objects_[run.object_a];
+  Object& b = *objects_[run.object_b];
+  if (a.dynamic() == b.dynamic()) return true;
+  ResolvingPair pair{a, b, run.object_a, run.object_b, run.begin, run.end, true,
+                     contacts_[run.begin].contact.point_a != SphereContact::kNoPoint,
+                     Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  pair.side_of_a = sideOfA(pair);
+  const bool a_fixed = !a.dynamic();
+  const Object& moving = a_fixed ? b : a;
+  const TouchedSurface touched =
+      touchedSurface(pair, (a_fixed ? -1.0 : 1.0) * pair.side_of_a.normalized());
+  const auto& positions = moving.body.positions();
+  const auto& velocities = moving.body.velocities();
+  const double reach = touched.level + config_.contact_distance_m;
+  const auto carried = [&](std::uint32_t point) {
+    const Eigen::Vector3d before = positions[point] - config_.dt_s * velocities[point];
+    return before.dot(touched.away) < reach && touched.inLine(before);
+  };
+  // A resting object's contact nodes hold such a point: the whole object is read only when
+  // they do not.
+  const auto& indices = moving.tree.pointIndices();
+  for (std::size_t k = run.begin; k < run.end; ++k) {
+    const SphereContact& c = contacts_[k].contact;
+    const SphereNode& node = moving.tree.node(a_fixed ? c.node_b : c.node_a);
+    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+      if (carried(indices[s])) return true;
+    }
+  }
+  for (std::uint32_t i = 0; i < positions.size(); ++i) {
+    if (carried(i)) return true;
+  }
+  return false;
 }
 
 }  // namespace deformable_collision

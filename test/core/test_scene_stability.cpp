@@ -214,11 +214,23 @@ INSTANTIATE_TEST_SUITE_P(SetupsFloorsAndSteps, StabilityTest,
                                                              Setup::kThrown})),
                          [](const auto& info) { return caseName(info.param); });
 
-// Known to fail (issue 26, item 1, open): in 26 of these 44 stacks a box enters the floor or
-// the box below, mostly in the first cycles. Run with --gtest_also_run_disabled_tests.
-INSTANTIATE_TEST_SUITE_P(DISABLED_Stacks, StabilityTest,
+// Stacks that still fail (issue 26, item 1, open), run with --gtest_also_run_disabled_tests:
+// boxes of stiffness 0 (no shape to return to) flatten under the one above, spread and
+// slide off it, or, at level 8 on the thick floor, a quadratic box of stiffness 0.5 kicked
+// sideways by its bottom box's rebound throws the top box off.
+bool knownFailingStack(const StabilityCase& c) {
+  const std::string body = c.body.name;
+  return (body == "rigid_stiffness_0" && c.level == 6) ||
+         (c.floor == FloorKind::kThick && body == "quadratic_3_clusters_stiffness_0_5" && c.level == 8) ||
+         (c.floor == FloorKind::kThick && body == "quadratic_3_clusters_stiffness_0" && c.level < 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Stacks, StabilityTest,
                          ::testing::ValuesIn(stabilityCases({Setup::kStacked})),
-                         [](const auto& info) { return caseName(info.param); });
+                         [](const auto& info) {
+                           return (knownFailingStack(info.param) ? "DISABLED_" : "") +
+                                  caseName(info.param);
+                         });
 
 }  // namespace
 }  // namespace deformable_collision
