@@ -207,6 +207,11 @@ class Scene {
   void resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
                    std::size_t run_begin, std::size_t run_end);
   void holdClearContact(ResolvingPair& pair);
+  bool heldContact(const ResolvingPair& pair);
+  /// How far the object's mean velocity carried it in this cycle's step (0 if not dynamic).
+  Eigen::Vector3d stepOf(const Object& object) const;
+  void undoStepApproach(const ResolvingPair& pair, const Eigen::Vector3d& normal,
+                        Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const;
   Eigen::Vector3d sideOfA(const ResolvingPair& pair);
   Eigen::Vector3d separatingNormal(const ResolvingPair& pair);
   /// One push per contact still too deep into pushes_.

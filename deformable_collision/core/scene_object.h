@@ -162,6 +162,7 @@ struct Scene::ResolvingPair {
   Eigen::Vector3d move_b = Eigen::Vector3d::Zero();
   /// The pushes' normals weighted by their depths: the pair's normal, not unit.
   Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
+  bool held = false;  ///< The two were in contact in the last cycle.
 };
 
 }  // namespace deformable_collision

@@ -186,6 +186,7 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
                      contacts_[run_begin].contact.point_a != SphereContact::kNoPoint,
                      a.translation,
                      b.translation};
+  pair.held = heldContact(pair);
   pair.side_of_a = sideOfA(pair);
   if (!pair.one_side_fixed) pair.dynamic_normal = separatingNormal(pair);
   collectPushes(pair);
@@ -209,10 +210,7 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
 // object that a later pair lifted a little would otherwise fall freely for a cycle, pass
 // half the contact distance and be pushed back, and never rest.
 void Scene::holdClearContact(ResolvingPair& pair) {
-  Object& remembering = pair.a.dynamic() ? pair.a : pair.b;
-  const std::uint32_t partner = &remembering == &pair.a ? pair.index_b : pair.index_a;
-  const auto* remembered = remembering.contact_memory.find(partner);
-  if (!remembered || remembered->cycle + 1 < cycle_count_) return;
+  if (!pair.held) return;
   const Eigen::Vector3d normal = pair.side_of_a.normalized();
   rememberSide(pair, normal);
   exchangeVelocities(pair, normal);
@@ -432,9 +430,54 @@ void Scene::moveByMeanPush(ResolvingPair& pair) {
   const double stiffness_b = dents ? pair.b.config.shape.stiffness : 1.0;
   if (pair.a.dynamic()) mean_a += stiffness_a * deepest_a * pair_direction;
   if (pair.b.dynamic()) mean_b -= stiffness_b * deepest_b * pair_direction;
+  if (pair.held) undoStepApproach(pair, pair_direction, mean_a, mean_b);
   pair.move_a = mean_a;
   pair.move_b = mean_b;
   pair.normal_sum = normal_sum;
+}
+
+// Two objects that touched in the last cycle rested on each other: what this cycle's step
+// (and the pairs before) brought them together along the pair's normal is undone by moving
+// them whole, whatever their stiffness, up to their deepest push; only overlap beyond that
+// dents. Otherwise a soft object moves back only by its mean push, and every point above its
+// contact ends each cycle lower by the difference: a soft box under another one compacts into
+// itself, and with no stiffness at all it never stops.
+void Scene::undoStepApproach(const ResolvingPair& pair, const Eigen::Vector3d& normal,
+                             Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const {
+  const Object& a = pair.a;
+  const Object& b = pair.b;
+  const Eigen::Vector3d step_a = stepOf(a);
+  const Eigen::Vector3d step_b = stepOf(b);
+  const double approach =
+      -((step_a + pair.translation_before_a) - (step_b + pair.translation_before_b)).dot(normal);
+  if (approach <= 0.0) return;
+  double depth_a = 0.0;
+  double depth_b = 0.0;
+  double deepest_a = 0.0;
+  double deepest_b = 0.0;
+  for (const ContactPush& push : pushes_) {
+    depth_a += push.depth_a;
+    depth_b += push.depth_b;
+    deepest_a = std::max(deepest_a, push.depth_a);
+    deepest_b = std::max(deepest_b, push.depth_b);
+  }
+  const double share_a = depth_a / (depth_a + depth_b);
+  const double need_a = std::min(share_a * approach, deepest_a);
+  const double need_b = std::min((1.0 - share_a) * approach, deepest_b);
+  if (a.dynamic() && move_a.dot(normal) < need_a) move_a += (need_a - move_a.dot(normal)) * normal;
+  if (b.dynamic() && -move_b.dot(normal) < need_b) move_b -= (need_b + move_b.dot(normal)) * normal;
+}
+
+Eigen::Vector3d Scene::stepOf(const Object& object) const {
+  return object.dynamic() ? Eigen::Vector3d(config_.dt_s * object.body.meanVelocity())
+                          : Eigen::Vector3d::Zero();
+}
+
+bool Scene::heldContact(const ResolvingPair& pair) {
+  Object& remembering = pair.a.dynamic() ? pair.a : pair.b;
+  const auto* remembered =
+      remembering.contact_memory.find(&remembering == &pair.a ? pair.index_b : pair.index_a);
+  return remembered && remembered->cycle + 1 >= cycle_count_;
 }
 
 void Scene::queueDents(const ResolvingPair& pair) {
@@ -506,10 +549,8 @@ void Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& norma
                                double share_a) const {
   const Object& a = pair.a;
   const Object& b = pair.b;
-  const Eigen::Vector3d step_a =
-      a.dynamic() ? Eigen::Vector3d(config_.dt_s * a.body.meanVelocity()) : Eigen::Vector3d::Zero();
-  const Eigen::Vector3d step_b =
-      b.dynamic() ? Eigen::Vector3d(config_.dt_s * b.body.meanVelocity()) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d step_a = stepOf(a);
+  const Eigen::Vector3d step_b = stepOf(b);
   const Eigen::Vector3d moved = (step_a + pair.translation_before_a + pair.move_a) -
                                 (step_b + pair.translation_before_b + pair.move_b);
   const Eigen::Vector3d slip = moved - moved.dot(normal) * normal;
@@ -543,8 +584,14 @@ bool Scene::isSupportLink(const ContactRun& run) {
   pair.side_of_a = sideOfA(pair);
   const bool a_fixed = !a.dynamic();
   const Object& moving = a_fixed ? b : a;
-  const TouchedSurface touched =
-      touchedSurface(pair, (a_fixed ? -1.0 : 1.0) * pair.side_of_a.normalized());
+  // Along the touched nodes' planes, as the pushes will be: the side the objects' centres
+  // give is tilted wherever the dynamic object is not right above a fixed node's centre.
+  Eigen::Vector3d away = Eigen::Vector3d::Zero();
+  for (std::size_t k = run.begin; k < run.end; ++k) {
+    const SphereContact& c = contacts_[k].contact;
+    away += fixedSurface(pair, a_fixed ? c.node_a : c.node_b).away;
+  }
+  const TouchedSurface touched = touchedSurface(pair, away.normalized());
   const auto& positions = moving.body.positions();
   const auto& velocities = moving.body.velocities();
   const double reach = touched.level + config_.contact_distance_m;

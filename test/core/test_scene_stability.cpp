@@ -215,14 +215,12 @@ INSTANTIATE_TEST_SUITE_P(SetupsFloorsAndSteps, StabilityTest,
                          [](const auto& info) { return caseName(info.param); });
 
 // Stacks that still fail (issue 26, item 1, open), run with --gtest_also_run_disabled_tests:
-// boxes of stiffness 0 (no shape to return to) flatten under the one above, spread and
-// slide off it, or, at level 8 on the thick floor, a quadratic box of stiffness 0.5 kicked
-// sideways by its bottom box's rebound throws the top box off.
+// at level 8 on the thick floor, the bottom one of three quadratic boxes of stiffness 0.5
+// rebounds by up to 4 cm per cycle, the few level-8 contacts with the middle box give a
+// normal tilted by up to 45 degrees, and the top box is thrown off within 40 cycles.
 bool knownFailingStack(const StabilityCase& c) {
-  const std::string body = c.body.name;
-  return (body == "rigid_stiffness_0" && c.level == 6) ||
-         (c.floor == FloorKind::kThick && body == "quadratic_3_clusters_stiffness_0_5" && c.level == 8) ||
-         (c.floor == FloorKind::kThick && body == "quadratic_3_clusters_stiffness_0" && c.level < 0);
+  return c.floor == FloorKind::kThick &&
+         std::string(c.body.name) == "quadratic_3_clusters_stiffness_0_5" && c.level == 8;
 }
 
 INSTANTIATE_TEST_SUITE_P(Stacks, StabilityTest,
