@@ -16,6 +16,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "deformable_collision/core/nearest_point_index.h"
+
 #include "deformable_collision/core/linear_algebra.h"
 
 namespace deformable_collision {
@@ -207,9 +209,9 @@ struct CloudRegistration::Workspace {
   std::vector<std::uint32_t> clusters_of_point;  ///< Per model point.
   std::vector<Eigen::Vector3d> positions;  ///< Of the matching points, this round.
   /// The matching points that may be seen (all, without a viewpoint): the tree's points.
-  MatchingPoints tree_points;
+  std::vector<Eigen::Vector3d> tree_positions;
   std::vector<std::uint32_t> tree_members;  ///< Matching point of each tree point.
-  std::unique_ptr<MatchingTree> tree;
+  NearestPointIndex tree;
   /// Surface normal of each matching point on the rest shape, turned with its first
   /// cluster: matches pull along it only, so the model slides freely along the surface it
   /// already lies on (point-to-plane ICP).
@@ -284,9 +286,8 @@ void CloudRegistration::Workspace::layOut(const ShapeMatchingBody& body,
   rest_normals = restNormals(rest, matching_points);
   current_normals.resize(matching_points.size());
   positions.resize(matching_points.size());
-  tree_points.positions.reserve(matching_points.size());
+  tree_positions.reserve(matching_points.size());
   tree_members.reserve(matching_points.size());
-  tree = std::make_unique<MatchingTree>(3, tree_points, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   target_sums.assign(matching_points.size(), Eigen::Vector3d::Zero());
   target_counts.assign(matching_points.size(), 0);
   fits.resize(body.clusterCount());
@@ -322,7 +323,7 @@ void CloudRegistration::Workspace::sampleCloud(const std::vector<Eigen::Vector3d
 
 void CloudRegistration::Workspace::placeMatchingPoints(
     const std::optional<Eigen::Vector3d>& viewpoint) {
-  tree_points.positions.clear();
+  tree_positions.clear();
   tree_members.clear();
   for (std::uint32_t m = 0; m < matching_points.size(); ++m) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
@@ -336,27 +337,23 @@ void CloudRegistration::Workspace::placeMatchingPoints(
     // on an edge would be pulled off it by the seen face's points on one side alone.
     if (!rest_normals.flat[m]) continue;
     if (viewpoint && current_normals[m].dot(*viewpoint - positions[m]) < 0.0) continue;
-    tree_points.positions.push_back(positions[m]);
+    tree_positions.push_back(positions[m]);
     tree_members.push_back(m);
   }
-  tree->buildIndex();
+  tree.build(tree_positions);
 }
 
 double CloudRegistration::Workspace::matchSamples() {
-  nanoflann::SearchParams search;
   sorted_distances.clear();
-  if (tree_points.positions.empty()) {
+  if (tree_positions.empty()) {
     std::fill(distance_of_sample.begin(), distance_of_sample.end(), std::numeric_limits<double>::infinity());
     return 0.0;
   }
   for (std::size_t j = 0; j < samples.size(); ++j) {
-    std::uint32_t nearest = 0;
-    double squared = 0.0;
-    nanoflann::KNNResultSet<double, std::uint32_t> result(1);
-    result.init(&nearest, &squared);
-    tree->findNeighbors(result, samples[j].data(), search);
-    match_of_sample[j] = tree_members[nearest];
-    distance_of_sample[j] = std::sqrt(squared);
+    NearestPointIndex::Nearest nearest;
+    tree.nearest(samples[j], nearest);
+    match_of_sample[j] = tree_members[nearest.index];
+    distance_of_sample[j] = std::sqrt(nearest.squared_distance_m2);
     sorted_distances.push_back(distance_of_sample[j]);
   }
   if (sorted_distances.empty()) return 0.0;

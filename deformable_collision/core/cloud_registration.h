@@ -60,8 +60,8 @@ struct RegistrationReport {
 /// Correspondence-free registration of a shape-matching model to an unordered, partial,
 /// noisy cloud (a depth camera's view of the object), by non-rigid ICP whose deformation
 /// model is the body's own clustered shape matching (docs/design.md, registration).
-/// Each round matches every thinned cloud point to its nearest model point (a nanoflann
-/// kd-tree over the model's matching points at their current positions), drops matches
+/// Each round matches every thinned cloud point to its nearest model point (a kd-tree over
+/// the model's matching points at their current positions, NearestPointIndex), drops matches
 /// beyond max_correspondence_m and beyond a robust multiple of the median distance, moves
 /// the model rigidly by the matches' best rotation and translation, and registers the body
 /// (ShapeMatchingBody::track) on the matched model points' targets: every cluster is fitted
@@ -82,8 +82,7 @@ class CloudRegistration {
   /// the cloud's frame, only model points whose surface faces the camera are matched: the
   /// far side of a thin object and the hidden faces next to a seen edge stay out. A cloud with too few matches (none, all NaN,
   /// another object's, far away) leaves the body unchanged and says so in `held`.
-  /// Steady state (the same body, clouds no larger than before) allocates only inside the
-  /// kd-tree library.
+  /// Steady state (the same body, clouds no larger than before) allocates nothing.
   /// `filter`, if given, leaves out the thinned cloud points it excludes.
   RegistrationReport registerCloud(ShapeMatchingBody& body,
                                    const std::vector<Eigen::Vector3d>& cloud_m,
