@@ -1,0 +1,173 @@
+#include "deformable_collision/core/level_budget.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace deformable_collision {
+namespace {
+
+void checkBudget(double budget_ms) {
+  if (!(budget_ms > 0.0) || !std::isfinite(budget_ms)) {
+    std::ostringstream message;
+    message << "cycle budget " << budget_ms << " ms must be finite and > 0";
+    throw std::invalid_argument(message.str());
+  }
+}
+
+void checkMaxLevel(int max_level) {
+  if (max_level < 0) {
+    throw std::invalid_argument("max_level " + std::to_string(max_level) + " must be >= 0");
+  }
+}
+
+void checkTuning(const LevelBudgetTuning& tuning) {
+  const auto inUnitInterval = [](double x) { return x > 0.0 && x <= 1.0; };
+  if (!inUnitInterval(tuning.headroom) || !inUnitInterval(tuning.rise_weight) ||
+      !inUnitInterval(tuning.fall_weight)) {
+    std::ostringstream message;
+    message << "LevelBudgetTuning: headroom " << tuning.headroom << ", rise_weight "
+            << tuning.rise_weight << " and fall_weight " << tuning.fall_weight
+            << " must be in (0, 1]";
+    throw std::invalid_argument(message.str());
+  }
+  if (tuning.explore_period_cycles < 1 || tuning.max_backoff_doublings < 0 ||
+      tuning.max_backoff_doublings > 32) {
+    throw std::invalid_argument(
+        "LevelBudgetTuning: explore_period_cycles " + std::to_string(tuning.explore_period_cycles) +
+        " must be >= 1 and max_backoff_doublings " + std::to_string(tuning.max_backoff_doublings) +
+        " in [0, 32]");
+  }
+}
+
+}  // namespace
+
+LevelBudget::LevelBudget(double budget_ms, int max_level, const LevelBudgetTuning& tuning)
+    : tuning_(tuning), budget_ms_(budget_ms) {
+  checkBudget(budget_ms);
+  checkMaxLevel(max_level);
+  checkTuning(tuning);
+  levels_.resize(static_cast<std::size_t>(max_level) + 1);
+}
+
+void LevelBudget::setBudget(double budget_ms) {
+  checkBudget(budget_ms);
+  budget_ms_ = budget_ms;
+}
+
+void LevelBudget::setMaxLevel(int max_level) {
+  checkMaxLevel(max_level);
+  levels_.resize(static_cast<std::size_t>(max_level) + 1);
+  if (level_ > max_level) {
+    level_ = max_level;
+    return_level_ = -1;
+  }
+}
+
+std::optional<double> LevelBudget::estimateMs(int level) const {
+  if (level < 0 || level > maxLevel() || !levels_[level].measured) return std::nullopt;
+  return levels_[level].estimate_ms;
+}
+
+void LevelBudget::record(double cost_ms) {
+  if (!(cost_ms >= 0.0) || !std::isfinite(cost_ms)) {
+    std::ostringstream message;
+    message << "cycle cost " << cost_ms << " ms must be finite and >= 0";
+    throw std::invalid_argument(message.str());
+  }
+  ++cycle_;
+  LevelCost& ran = levels_[level_];
+  takeCost(ran, cost_ms);
+  // A try of a finer level must show headroom to stay; a level already chosen stays while
+  // it fits: the gap between the two is the hysteresis.
+  const bool keep = return_level_ >= 0 ? comfortable(ran) : fits(ran);
+  level_ = keep ? levelAfterKeeping() : levelAfterLeaving();
+}
+
+void LevelBudget::takeCost(LevelCost& level, double cost_ms) const {
+  const bool stale = !level.measured ||
+                     cycle_ - level.measured_cycle > std::uint64_t(tuning_.explore_period_cycles);
+  if (stale) {
+    level.estimate_ms = cost_ms;
+  } else {
+    const double weight = cost_ms > level.estimate_ms ? tuning_.rise_weight : tuning_.fall_weight;
+    level.estimate_ms += weight * (cost_ms - level.estimate_ms);
+  }
+  level.measured = true;
+  level.measured_cycle = cycle_;
+}
+
+bool LevelBudget::fits(const LevelCost& level) const {
+  return level.measured && level.estimate_ms <= budget_ms_;
+}
+
+bool LevelBudget::comfortable(const LevelCost& level) const {
+  return level.measured && level.estimate_ms <= tuning_.headroom * budget_ms_;
+}
+
+template <typename Test>
+int LevelBudget::finestLevel(Test test) const {
+  for (int level = maxLevel(); level >= 0; --level) {
+    if (test(levels_[level])) return level;
+  }
+  return -1;
+}
+
+int LevelBudget::levelAfterKeeping() {
+  LevelCost& ran = levels_[level_];
+  ran.failed_tries = 0;
+  return_level_ = -1;
+  const int finer = finestLevel([this](const LevelCost& l) { return comfortable(l); });
+  if (finer > level_) return finer;
+  if (!comfortable(ran)) return level_;
+  const int tried = finerLevelToTry();
+  if (tried < 0) return level_;
+  return_level_ = level_;
+  next_try_cycle_ = cycle_ + std::uint64_t(tuning_.explore_period_cycles);
+  return tried;
+}
+
+int LevelBudget::finerLevelToTry() const {
+  // The first cycles climb from level 0 one level a cycle while each has headroom.
+  if (level_ < maxLevel() && !levels_[level_ + 1].measured) return level_ + 1;
+  if (cycle_ < next_try_cycle_) return -1;
+  // Coarse to fine: a coarser level is likelier to fit.
+  for (int level = level_ + 1; level <= maxLevel(); ++level) {
+    const LevelCost& cost = levels_[level];
+    if (!cost.measured || (!comfortable(cost) && cycle_ >= cost.retry_cycle)) return level;
+  }
+  return -1;
+}
+
+int LevelBudget::levelAfterLeaving() {
+  deferRetry(levels_[level_]);
+  if (return_level_ >= 0) {
+    const int back = return_level_;
+    return_level_ = -1;
+    return back;
+  }
+  int next = finestLevel([this](const LevelCost& l) { return comfortable(l); });
+  if (next < 0) next = finestLevel([this](const LevelCost& l) { return fits(l); });
+  if (next >= 0) return next;
+  // Nothing known fits: a level never run may, the coarser ones first.
+  for (int level = level_ - 1; level >= 0; --level) {
+    if (!levels_[level].measured) return level;
+  }
+  for (int level = level_ + 1; level <= maxLevel(); ++level) {
+    if (!levels_[level].measured) return level;
+  }
+  int cheapest = level_;
+  for (int level = 0; level <= maxLevel(); ++level) {
+    if (levels_[level].estimate_ms < levels_[cheapest].estimate_ms) cheapest = level;
+  }
+  return cheapest;
+}
+
+void LevelBudget::deferRetry(LevelCost& level) const {
+  const int doublings = std::min(level.failed_tries, tuning_.max_backoff_doublings);
+  level.retry_cycle = cycle_ + (std::uint64_t(tuning_.explore_period_cycles) << doublings);
+  level.failed_tries = std::min(level.failed_tries + 1, tuning_.max_backoff_doublings);
+}
+
+}  // namespace deformable_collision

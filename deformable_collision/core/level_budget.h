@@ -1,0 +1,101 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace deformable_collision {
+
+/// How LevelBudget trades quick reaction for a steady level. The defaults suit cycles of
+/// a few ms whose cost jitters by a few tens of percent (a loaded machine).
+struct LevelBudgetTuning {
+  /// A finer level is taken only if its expected cost is within this fraction of the
+  /// budget, while the running level is kept as long as it fits the whole budget: a level
+  /// that only just fits is not worth a switch that the next noisy cycle takes back.
+  double headroom = 0.8;
+  /// Weight of a new cost above a level's estimate, and below it (in (0, 1]). Rises count
+  /// more, so that a scene that got dearer leaves the level within a cycle or two.
+  double rise_weight = 0.5;
+  double fall_weight = 0.2;
+  /// Cycles between tries of a finer level (never run, or too slow when last run) while
+  /// the running one has headroom; an estimate older than this is replaced by the next
+  /// cost measured at its level.
+  int explore_period_cycles = 50;
+  /// A level found too slow at each try waits twice as long for the next, at most
+  /// 2^max_backoff_doublings periods.
+  int max_backoff_doublings = 4;
+};
+
+/// Picks the level of detail of each cycle from a budget for its detection and response
+/// (the paper's section 6: "depending on the time available, the hierarchies are tested
+/// down to a certain layer"; docs/design.md, "Level from a cycle budget"). Costs need not
+/// grow with the level, so each level keeps its own estimate, a moving average of what
+/// cycles at it cost, and every level with an estimate is considered: the next level is
+/// the finest one expected within headroom x budget, the running one kept while its
+/// estimate fits the budget. Levels never run are tried one at a time when the running
+/// level has headroom (the next finer one at once, as the first cycles climb from level
+/// 0; others every explore_period_cycles), and left at once if they do not fit with
+/// headroom. record() allocates nothing.
+class LevelBudget {
+ public:
+  /// Starts at level 0 (the coarsest) with no estimates.
+  /// @throw std::invalid_argument if budget_ms is not finite and > 0, max_level < 0, or a
+  /// tuning value is outside its range.
+  LevelBudget(double budget_ms, int max_level, const LevelBudgetTuning& tuning = {});
+
+  /// Changes the budget from the next choice on, keeping the estimates.
+  /// @throw std::invalid_argument if budget_ms is not finite and > 0.
+  void setBudget(double budget_ms);
+  /// Levels are now 0..max_level (objects came or went): the kept levels keep their
+  /// estimates, and the running level is clamped. Allocates only when the levels grow.
+  /// @throw std::invalid_argument if max_level < 0.
+  void setMaxLevel(int max_level);
+
+  /// Takes the cost (detection + response, ms) of the cycle just run at level() into that
+  /// level's estimate and picks the level of the next cycle.
+  /// @throw std::invalid_argument if cost_ms is negative or not finite.
+  void record(double cost_ms);
+
+  /// The level the next cycle runs at, in [0, maxLevel()].
+  int level() const { return level_; }
+  int maxLevel() const { return static_cast<int>(levels_.size()) - 1; }
+  double budgetMs() const { return budget_ms_; }
+  /// The expected cost at `level`, or std::nullopt if no cycle has run there (or level is
+  /// outside [0, maxLevel()]).
+  std::optional<double> estimateMs(int level) const;
+
+ private:
+  struct LevelCost {
+    double estimate_ms = 0.0;
+    std::uint64_t measured_cycle = 0;  ///< The cycle of its last cost.
+    std::uint64_t retry_cycle = 0;     ///< Before this cycle, no try comes back to it.
+    int failed_tries = 0;              ///< Tries in a row that left it as too slow.
+    bool measured = false;
+  };
+
+  void takeCost(LevelCost& level, double cost_ms) const;
+  bool fits(const LevelCost& level) const;
+  bool comfortable(const LevelCost& level) const;
+  /// The level after a cycle at level_ that is kept: finer if one is known to be
+  /// comfortable, a try of a finer one if due, or level_.
+  int levelAfterKeeping();
+  /// The level after a cycle at level_ that is too slow.
+  int levelAfterLeaving();
+  /// A finer level to try now, or -1.
+  int finerLevelToTry() const;
+  /// The finest level whose estimate passes `test`, or -1.
+  template <typename Test>
+  int finestLevel(Test test) const;
+  void deferRetry(LevelCost& level) const;
+
+  LevelBudgetTuning tuning_;
+  double budget_ms_;
+  std::vector<LevelCost> levels_;
+  int level_ = 0;
+  /// While a try of a finer level runs: the level to come back to if it does not fit; -1.
+  int return_level_ = -1;
+  std::uint64_t cycle_ = 0;
+  std::uint64_t next_try_cycle_ = 0;
+};
+
+}  // namespace deformable_collision
