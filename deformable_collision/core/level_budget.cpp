@@ -157,11 +157,14 @@ int LevelBudget::levelAfterLeaving() {
   for (int level = level_ + 1; level <= maxLevel(); ++level) {
     if (!levels_[level].measured) return level;
   }
+  // The cheapest level, if clearly cheaper than this one: levels of about the same cost
+  // would otherwise take turns with the noise of each cycle.
   int cheapest = level_;
   for (int level = 0; level <= maxLevel(); ++level) {
     if (levels_[level].estimate_ms < levels_[cheapest].estimate_ms) cheapest = level;
   }
-  return cheapest;
+  const bool clearly = levels_[cheapest].estimate_ms < tuning_.headroom * levels_[level_].estimate_ms;
+  return clearly ? cheapest : level_;
 }
 
 void LevelBudget::deferRetry(LevelCost& level) const {

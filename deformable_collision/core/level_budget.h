@@ -79,7 +79,8 @@ class LevelBudget {
   /// The level after a cycle at level_ that is kept: finer if one is known to be
   /// comfortable, a try of a finer one if due, or level_.
   int levelAfterKeeping();
-  /// The level after a cycle at level_ that is too slow.
+  /// The level after a cycle at level_ that is too slow: one expected to fit, else one
+  /// never run, else the cheapest.
   int levelAfterLeaving();
   /// A finer level to try now, or -1.
   int finerLevelToTry() const;

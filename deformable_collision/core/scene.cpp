@@ -59,6 +59,13 @@ Scene::Scene(const SceneConfig& config) : config_(config) {
     value << "SceneConfig.level = " << config.level << " must be >= 0, or -1 for the finest";
     fail(value.str());
   }
+  if (config.cycle_budget_ms) {
+    try {
+      level_budget_.emplace(*config.cycle_budget_ms, 0);
+    } catch (const std::invalid_argument& e) {
+      fail(std::string("SceneConfig.cycle_budget_ms: ") + e.what());
+    }
+  }
   if (config.tree.branching < 2 || config.tree.leaf_size < 1 ||
       config.tree.exact_radius_points < 0) {
     value << "SceneConfig.tree (branching " << config.tree.branching << ", leaf_size "
@@ -163,6 +170,8 @@ void Scene::cycle() {
   const auto simulated = Clock::now();
 
   refreshStaleTrees();
+  // Objects that came since the last cycle may have added levels.
+  if (level_budget_) level_budget_->setMaxLevel(maxLevel());
   stats_.level = level();
   contacts_.clear();
   contact_runs_.clear();
@@ -184,6 +193,11 @@ void Scene::cycle() {
   stats_.node_pairs_tested = query_counters_.node_pairs_tested;
   stats_.point_tests = query_counters_.point_tests;
   stats_.contacts = contacts_.size();
+  if (level_budget_) {
+    stats_.level_auto = true;
+    stats_.cycle_budget_ms = level_budget_->budgetMs();
+    level_budget_->record(stats_.detection_ms + stats_.response_ms);
+  }
 }
 
 void Scene::refreshStaleTrees() {
@@ -200,6 +214,23 @@ void Scene::setLevel(int level) {
                             std::to_string(maxLevel()) + "] (-1: the finest)");
   }
   config_.level = level;
+  config_.cycle_budget_ms.reset();
+  level_budget_.reset();
+}
+
+void Scene::setCycleBudget(std::optional<double> budget_ms) {
+  if (!budget_ms) {
+    config_.level = level();
+    config_.cycle_budget_ms.reset();
+    level_budget_.reset();
+    return;
+  }
+  if (level_budget_) {
+    level_budget_->setBudget(*budget_ms);
+  } else {
+    level_budget_.emplace(*budget_ms, maxLevel());
+  }
+  config_.cycle_budget_ms = budget_ms;
 }
 
 void Scene::setTimeStep(double dt_s) {
@@ -210,6 +241,7 @@ void Scene::setTimeStep(double dt_s) {
 }
 
 int Scene::level() const {
+  if (level_budget_) return std::min(level_budget_->level(), maxLevel());
   return config_.level < 0 ? maxLevel() : std::min(config_.level, maxLevel());
 }
 

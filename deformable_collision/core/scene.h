@@ -10,6 +10,7 @@
 #include "deformable_collision/core/cloud_registration.h"
 #include "deformable_collision/core/collision_query.h"
 #include "deformable_collision/core/enum_names.h"
+#include "deformable_collision/core/level_budget.h"
 #include "deformable_collision/core/shape_matching.h"
 #include "deformable_collision/core/sphere_tree.h"
 
@@ -45,6 +46,9 @@ struct SceneConfig {
   double dt_s = 0.01;                ///< Step of one cycle, in (0, 0.1].
   double contact_distance_m = 0.005; ///< Points closer than this are in contact (> 0).
   int level = -1;                    ///< Level of detail; -1: the finest (the leaves).
+  /// Set (> 0): each cycle runs at the level a LevelBudget picks to fit this many ms of
+  /// detection and response, and `level` is not read (Scene::setCycleBudget).
+  std::optional<double> cycle_budget_ms;
   /// Coulomb friction coefficient (>= 0) between touching objects: the sliding speed of a
   /// pair drops by at most this times the approach speed the contact stops.
   double friction = 0.5;
@@ -65,6 +69,8 @@ struct CycleStats {
   double detection_ms = 0.0;
   double response_ms = 0.0;
   int level = 0;  ///< The level the contacts were found at.
+  bool level_auto = false;       ///< The level was picked to fit cycle_budget_ms.
+  double cycle_budget_ms = 0.0;  ///< The budget it was picked for; 0 when the level is fixed.
   std::size_t objects_moved = 0;         ///< Stepped, posed or registered this cycle.
   std::size_t object_pairs_tested = 0;   ///< Root sphere tests after the sweep.
   std::size_t spheres_updated = 0;
@@ -124,13 +130,22 @@ class Scene {
   void cycle();
 
   /// Changes the level of the next cycles (no other cost); -1 is the finest, as in
-  /// SceneConfig, and stays the finest when deeper objects come.
+  /// SceneConfig, and stays the finest when deeper objects come. Leaves budget mode.
   /// @throw std::out_of_range if level is not -1 or in [0, maxLevel()].
   void setLevel(int level);
+  /// Set: from the next cycle on, each cycle runs at the finest level expected to fit
+  /// `budget_ms` of detection and response, from what earlier cycles cost at each level
+  /// (LevelBudget; entering budget mode starts from level 0, a new budget in budget mode
+  /// keeps the estimates). std::nullopt: the level the budget picked last stays fixed.
+  /// @throw std::invalid_argument if budget_ms is not finite and > 0.
+  void setCycleBudget(std::optional<double> budget_ms);
+  /// The budget in force; std::nullopt when the level is fixed.
+  std::optional<double> cycleBudget() const { return config_.cycle_budget_ms; }
   /// Changes the step of the next cycles (a node whose clouds' stamps time its cycles).
   /// @throw std::invalid_argument unless dt_s is in (0, 0.1].
   void setTimeStep(double dt_s);
-  /// The level in force: the configured one, or maxLevel() for "finest".
+  /// The level of the next cycle: the configured one, maxLevel() for "finest", or the one
+  /// the cycle budget picked.
   int level() const;
   /// The finest level over all objects (the leaves).
   int maxLevel() const;
@@ -258,6 +273,7 @@ class Scene {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> sorted_pairs_;
   std::vector<std::uint32_t> pair_offsets_;
   HierarchyQuery query_;
+  std::optional<LevelBudget> level_budget_;  ///< Set in budget mode.
   std::vector<SceneContact> contacts_;
   std::vector<ContactPush> pushes_;
   std::vector<std::uint32_t> support_queue_;

@@ -2,12 +2,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <ostream>
 #include <random>
 #include <string>
 #include <vector>
+
+#include "deformable_collision/scenes/demo_scenes.h"
 
 namespace deformable_collision {
 namespace {
@@ -222,6 +225,87 @@ TEST(LevelBudget, RefusesABadBudgetCostOrTuning) {
         tuned([](auto& t) { t.explore_period_cycles = 0; }),
         tuned([](auto& t) { t.max_backoff_doublings = -1; })}) {
     EXPECT_THROW(LevelBudget(1.0, 3, bad), std::invalid_argument);
+  }
+}
+
+
+// The scene in budget mode: three_objects (19k points) at a few ms per cycle.
+
+TEST(SceneCycleBudget, AGenerousBudgetClimbsToTheFinestLevelAndStatsSaySo) {
+  SceneConfig config;
+  config.cycle_budget_ms = 1e4;
+  auto scene = makeDemoScene(DemoScene::kThreeObjects, 0, config);
+  ASSERT_EQ(scene->cycleBudget(), 1e4);
+  const int finest = scene->maxLevel();
+  ASSERT_GT(finest, 2);
+  for (int level = 0; level <= finest; ++level) {
+    scene->cycle();
+    ASSERT_EQ(scene->stats().level, level) << "one level a cycle from level 0";
+    EXPECT_TRUE(scene->stats().level_auto);
+    EXPECT_EQ(scene->stats().cycle_budget_ms, 1e4);
+  }
+  for (int cycle = 0; cycle < 5; ++cycle) {
+    scene->cycle();
+    EXPECT_EQ(scene->stats().level, finest);
+  }
+}
+
+TEST(SceneCycleBudget, AnImpossibleBudgetSettlesOnACheapLevel) {
+  auto scene = makeDemoScene(DemoScene::kThreeObjects);
+  for (int cycle = 0; cycle < 150; ++cycle) scene->cycle();  // the objects have landed
+  scene->setCycleBudget(1e-9);
+  const int finest = scene->maxLevel();
+  std::vector<int> runs(finest + 1, 0);
+  int switches = 0;
+  for (int cycle = 0; cycle < 200; ++cycle) {
+    const int before = scene->level();
+    scene->cycle();
+    ++runs[scene->stats().level];
+    if (cycle > finest) switches += scene->level() != before;
+  }
+  // Every level is run once to learn that none fits; then a level stays unless another is
+  // clearly cheaper (a cycle's noise does not make it so).
+  for (int level = 0; level <= finest; ++level) EXPECT_GE(runs[level], 1) << level;
+  EXPECT_LE(switches, 10);
+}
+
+TEST(SceneCycleBudget, SetLevelLeavesBudgetModeAndNoBudgetKeepsThePickedLevel) {
+  auto scene = makeDemoScene(DemoScene::kThreeObjects);
+  scene->setCycleBudget(1e4);
+  for (int cycle = 0; cycle < 3; ++cycle) scene->cycle();
+  scene->setCycleBudget(std::nullopt);
+  EXPECT_FALSE(scene->cycleBudget());
+  EXPECT_EQ(scene->level(), 3);  // picked after the cycles at levels 0, 1 and 2
+  scene->cycle();
+  EXPECT_EQ(scene->stats().level, 3);
+  EXPECT_FALSE(scene->stats().level_auto);
+  EXPECT_EQ(scene->stats().cycle_budget_ms, 0.0);
+
+  scene->setCycleBudget(1e4);  // entered again: from level 0
+  scene->cycle();
+  EXPECT_EQ(scene->stats().level, 0);
+  scene->setLevel(2);
+  EXPECT_FALSE(scene->cycleBudget());
+  scene->cycle();
+  EXPECT_EQ(scene->stats().level, 2);
+  EXPECT_FALSE(scene->stats().level_auto);
+}
+
+TEST(SceneCycleBudget, ABadBudgetIsRefusedAndChangesNothing) {
+  auto scene = makeDemoScene(DemoScene::kThreeObjects);
+  scene->setCycleBudget(5.0);
+  for (const double bad : {0.0, -2.0, kNaN, kInf}) {
+    EXPECT_THROW(scene->setCycleBudget(bad), std::invalid_argument) << bad;
+    EXPECT_EQ(scene->cycleBudget(), 5.0);
+    SceneConfig config;
+    config.cycle_budget_ms = bad;
+    try {
+      Scene refused(config);
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("SceneConfig.cycle_budget_ms"), std::string::npos)
+          << e.what();
+    }
   }
 }
 
