@@ -41,18 +41,33 @@ std::string levelOutOfRange(int level, int max_level) {
 
 }  // namespace
 
-void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response) {
+void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response,
+                    std::optional<double> cycle_budget_ms) {
   response.success = false;
+  // Without a budget in the config, -3 is out of range like any other level.
+  const bool to_auto = request.level == kAutoLevel && cycle_budget_ms;
   if (scene.objectCount() == 0) {
     response.message = "no object has a rest shape yet, so there are no levels: publish clouds first";
-  } else if (request.level != SetLevel::Request::RUNNING &&
+  } else if (!to_auto && request.level != SetLevel::Request::RUNNING &&
              !isRequestableLevel(request.level, scene.maxLevel())) {
-    response.message = levelOutOfRange(request.level, scene.maxLevel());
+    response.message = levelOutOfRange(request.level, scene.maxLevel()) +
+                       (cycle_budget_ms ? "; -3: auto"
+                                        : "; -3 (auto) needs level: auto and cycle_budget_ms in "
+                                          "the config");
   } else {
-    if (request.level != SetLevel::Request::RUNNING) scene.setLevel(request.level);
+    if (to_auto) {
+      scene.setCycleBudget(cycle_budget_ms);
+    } else if (request.level != SetLevel::Request::RUNNING) {
+      scene.setLevel(request.level);
+    }
     response.success = true;
     response.message = "level " + std::to_string(scene.level()) + " of [0, " +
                        std::to_string(scene.maxLevel()) + "]";
+    if (const std::optional<double> budget = scene.cycleBudget()) {
+      std::ostringstream fit;
+      fit << ", picked each cycle to fit " << *budget << " ms";
+      response.message += fit.str();
+    }
   }
   response.max_level = static_cast<std::uint8_t>(scene.maxLevel());
   response.level = static_cast<std::uint8_t>(scene.level());

@@ -23,9 +23,15 @@ struct NamedObject {
 /// fuzzers can put any request to them. A bad request gets success = false and a message
 /// that says what is wrong; it changes nothing.
 
+/// SetLevel's level for "auto": the level of each cycle picked to fit the cycle budget.
+constexpr int kAutoLevel = -3;
+
 /// Sets the scene's running level to the requested one in [0, maxLevel()] or to FINEST
-/// (-1, which stays the finest as deeper objects come); RUNNING (-2) only answers.
-void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response);
+/// (-1, which stays the finest as deeper objects come), which leaves budget mode;
+/// kAutoLevel (-3) enters budget mode with `cycle_budget_ms` (the node's, std::nullopt if
+/// it has none: then the request fails); RUNNING (-2) only answers.
+void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response,
+                    std::optional<double> cycle_budget_ms = std::nullopt);
 
 /// Contacts of the named objects (empty name: any) at the requested level (FINEST, -1: the
 /// leaves; RUNNING, -2: the running one) on the current state; the running level is left

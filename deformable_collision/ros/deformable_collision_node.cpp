@@ -376,6 +376,8 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.header = header;
   stats.level = static_cast<std::uint8_t>(cycle.level);
   stats.max_level = static_cast<std::uint8_t>(scene_.maxLevel());
+  stats.level_auto = cycle.level_auto;
+  stats.cycle_budget_ms = cycle.cycle_budget_ms;
   stats.shape_matching_ms = cycle.shape_matching_ms;
   stats.detection_ms = cycle.detection_ms;
   stats.response_ms = cycle.response_ms;
@@ -412,7 +414,7 @@ void DeformableCollisionNode::fillLatencyStats(Stats& stats) const {
 }
 
 bool DeformableCollisionNode::onSetLevel(SetLevel::Request& request, SetLevel::Response& response) {
-  answerSetLevel(scene_, request, response);
+  answerSetLevel(scene_, request, response, config_.scene.cycle_budget_ms);
   return true;
 }
 

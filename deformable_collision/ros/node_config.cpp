@@ -375,6 +375,26 @@ void readStep(ParamReader& read, NodeConfig& config, std::vector<std::string>& w
   config.scene.dt_s = std::min(1.0 / config.rate_hz, 0.1);
 }
 
+/// level: an integer (-1: the finest), or `auto` with cycle_budget_ms, which is read only then.
+void readLevel(ParamReader& read, SceneConfig& scene) {
+  const XmlRpcValue* level = read.find("level");
+  const bool budget_given = read.find("cycle_budget_ms") != nullptr;
+  if (level == nullptr || level->getType() != XmlRpcValue::TypeString) {
+    scene.level = static_cast<int>(read.integer("level", scene.level, -1, 255));
+    if (budget_given) ParamReader::fail("cycle_budget_ms", "is read only with level: auto");
+    return;
+  }
+  const std::string text = static_cast<std::string>(*level);
+  if (text != "auto") {
+    ParamReader::fail("level", "= '" + text + "' must be an integer in [-1, 255] or 'auto'");
+  }
+  if (!budget_given) {
+    ParamReader::fail("level", "= 'auto' needs cycle_budget_ms (> 0: ms of detection and "
+                               "response per cycle)");
+  }
+  scene.cycle_budget_ms = read.number("cycle_budget_ms", 0.0, 0.0, 1e6, true);
+}
+
 /// Clouds start cycles only if some object's clouds are read every time: a tracked or
 /// registered one.
 void checkCloudsStartCycles(const NodeConfig& config) {
@@ -410,7 +430,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   readStep(read, config, warnings);
   scene.gravity_mps2 =
       read.vector3(read.renamed("gravity_mps2", "gravity", warnings), scene.gravity_mps2);
-  scene.level = static_cast<int>(read.integer("level", scene.level, -1, 255));
+  readLevel(read, scene);
   scene.contact_distance_m =
       read.number("contact_distance_m", scene.contact_distance_m, 0.0, 1e6, true);
   scene.friction = read.number("friction", scene.friction, 0.0, 1e3);

@@ -78,7 +78,8 @@ struct NodeConfig {
   /// coordinate that far is a sensor's garbage, not an object.
   double max_coordinate_m = 1e4;
   bool markers_colliding_only = false;
-  /// dt_s, gravity_mps2, level, contact_distance_m, friction, tree, register.
+  /// dt_s, gravity_mps2, level (or `auto` and cycle_budget_ms), contact_distance_m,
+  /// friction, tree, register.
   SceneConfig scene;
   std::vector<ObjectParams> objects;
 };

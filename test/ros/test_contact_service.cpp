@@ -99,6 +99,42 @@ TEST_F(ContactServiceTest, SetLevelFinestIsTheFinestOfTheConfig) {
   EXPECT_EQ(response.level, scene_->maxLevel());
 }
 
+TEST_F(ContactServiceTest, SetLevelAutoEntersBudgetModeWithTheConfiguredBudget) {
+  SetLevel::Request request;
+  request.level = static_cast<std::int16_t>(kAutoLevel);
+  SetLevel::Response response;
+  answerSetLevel(*scene_, request, response);
+  EXPECT_FALSE(response.success);
+  EXPECT_NE(response.message.find("-3 (auto) needs level: auto and cycle_budget_ms"),
+            std::string::npos)
+      << response.message;
+  EXPECT_FALSE(scene_->cycleBudget());
+
+  scene_->setLevel(2);
+  answerSetLevel(*scene_, request, response, 4.5);
+  ASSERT_TRUE(response.success) << response.message;
+  EXPECT_EQ(scene_->cycleBudget(), 4.5);
+  EXPECT_EQ(response.level, 0);  // budget mode starts from the coarsest level
+  EXPECT_NE(response.message.find("picked each cycle to fit 4.5 ms"), std::string::npos)
+      << response.message;
+
+  request.level = SetLevel::Request::RUNNING;  // only answers: the budget stays
+  answerSetLevel(*scene_, request, response, 4.5);
+  ASSERT_TRUE(response.success);
+  EXPECT_EQ(scene_->cycleBudget(), 4.5);
+
+  request.level = 3;  // a number leaves budget mode
+  answerSetLevel(*scene_, request, response, 4.5);
+  ASSERT_TRUE(response.success);
+  EXPECT_FALSE(scene_->cycleBudget());
+  EXPECT_EQ(scene_->level(), 3);
+
+  request.level = static_cast<std::int16_t>(scene_->maxLevel() + 1);
+  answerSetLevel(*scene_, request, response, 4.5);
+  EXPECT_FALSE(response.success);
+  EXPECT_NE(response.message.find("; -3: auto"), std::string::npos) << response.message;
+}
+
 TEST(ContactService, SetLevelOnAnEmptySceneSaysWhy) {
   Scene scene{SceneConfig{}};
   SetLevel::Request request;

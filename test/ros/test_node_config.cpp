@@ -4,6 +4,7 @@
 
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -132,6 +133,15 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"LargeStep", [](XmlRpcValue& p) { p["dt_s"] = 0.5; }, "dt_s = 0.5"},
         BadParamCase{"LevelBelowMinusOne", [](XmlRpcValue& p) { p["level"] = -2; }, "level = -2"},
         BadParamCase{"LevelNotInteger", [](XmlRpcValue& p) { p["level"] = 2.5; }, "level must be an integer"},
+        BadParamCase{"LevelAnotherWord", [](XmlRpcValue& p) { p["level"] = "fast"; }, "level = 'fast' must be an integer in [-1, 255] or 'auto'"},
+        BadParamCase{"LevelAutoWithoutBudget", [](XmlRpcValue& p) { p["level"] = "auto"; }, "level = 'auto' needs cycle_budget_ms"},
+        BadParamCase{"BudgetWithoutAuto", [](XmlRpcValue& p) { p["cycle_budget_ms"] = 5.0; }, "cycle_budget_ms is read only with level: auto"},
+        BadParamCase{"BudgetWithFinest", [](XmlRpcValue& p) { p["level"] = -1; p["cycle_budget_ms"] = 5.0; }, "cycle_budget_ms is read only with level: auto"},
+        BadParamCase{"ZeroBudget", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = 0.0; }, "cycle_budget_ms = 0 must be in (0, 1e+06]"},
+        BadParamCase{"NegativeBudget", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = -3; }, "cycle_budget_ms = -3 must be in (0, 1e+06]"},
+        BadParamCase{"InfiniteBudget", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = std::numeric_limits<double>::infinity(); }, "cycle_budget_ms = inf"},
+        BadParamCase{"NaNBudget", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = std::numeric_limits<double>::quiet_NaN(); }, "cycle_budget_ms = nan"},
+        BadParamCase{"BudgetAsString", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = "short"; }, "cycle_budget_ms must be a number"},
         BadParamCase{"NegativeContactDistance", [](XmlRpcValue& p) { p["contact_distance_m"] = -0.1; }, "contact_distance_m"},
         BadParamCase{"GravityOfTwo", [](XmlRpcValue& p) {
           XmlRpcValue two; two[0] = 0.0; two[1] = -9.81; p["gravity_mps2"] = two; }, "gravity_mps2 must be a list of 3"},
@@ -191,6 +201,40 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"StepFromStampsWithTimer", [](XmlRpcValue& p) { p["dt_s"] = "stamp"; }, "dt_s = 'stamp' needs cycle_on: clouds"},
         BadParamCase{"StepAsAnotherWord", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["dt_s"] = "fast"; }, "dt_s = 'fast' must be a number in (0, 0.1] or 'stamp'"},
         BadParamCase{"CloudsWithoutTrackedObject", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["objects"][3]["on_cloud"] = "ignore"; }, "cycle_on = 'clouds' needs an object with on_cloud: track or register"}),
+    [](const auto& info) { return info.param.name; });
+
+/// A `level` (absent: std::nullopt) and a `cycle_budget_ms` (absent: std::nullopt), and
+/// what the scene's config holds after parsing them.
+struct LevelCase {
+  std::string name;
+  std::optional<XmlRpcValue> level;
+  std::optional<XmlRpcValue> budget_ms;
+  int scene_level;
+  std::optional<double> scene_budget_ms;
+};
+
+class LevelParamTest : public ::testing::TestWithParam<LevelCase> {};
+
+TEST_P(LevelParamTest, LevelIsAnIntegerOrAutoWithABudget) {
+  const LevelCase& c = GetParam();
+  XmlRpcValue params;
+  params["objects"][0] = object("ball", "ball/points");
+  if (c.level) params["level"] = *c.level;
+  if (c.budget_ms) params["cycle_budget_ms"] = *c.budget_ms;
+  const SceneConfig scene = parseWithoutWarnings(params).scene;
+  EXPECT_EQ(scene.level, c.scene_level);
+  EXPECT_EQ(scene.cycle_budget_ms, c.scene_budget_ms);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    NodeConfig, LevelParamTest,
+    ::testing::Values(
+        LevelCase{"Absent", std::nullopt, std::nullopt, -1, std::nullopt},
+        LevelCase{"Finest", XmlRpcValue(-1), std::nullopt, -1, std::nullopt},
+        LevelCase{"Fixed", XmlRpcValue(4), std::nullopt, 4, std::nullopt},
+        LevelCase{"AutoWithABudget", XmlRpcValue("auto"), XmlRpcValue(2.5), -1, 2.5},
+        LevelCase{"AutoWithAnIntegerBudget", XmlRpcValue("auto"), XmlRpcValue(8), -1, 8.0},
+        LevelCase{"AutoWithTheLargestBudget", XmlRpcValue("auto"), XmlRpcValue(1e6), -1, 1e6}),
     [](const auto& info) { return info.param.name; });
 
 TEST(NodeConfig, CyclesFollowTheTimerUnlessCloudsStartThem) {

@@ -164,6 +164,8 @@ TEST_F(NodeletTest, PublishesContactsBetweenTouchingObjects) {
   }
   EXPECT_GT(stats_->points, 0u);
   EXPECT_EQ(stats_->max_level, max_level_);
+  EXPECT_FALSE(stats_->level_auto) << "the config has no level: auto";
+  EXPECT_EQ(stats_->cycle_budget_ms, 0.0);
 }
 
 TEST_F(NodeletTest, SetLevelAnswersGoodAndBadRequests) {
