@@ -163,8 +163,8 @@ int LevelBudget::levelAfterLeaving() {
   for (int level = 0; level <= maxLevel(); ++level) {
     if (levels_[level].estimate_ms < levels_[cheapest].estimate_ms) cheapest = level;
   }
-  const bool clearly = levels_[cheapest].estimate_ms < tuning_.headroom * levels_[level_].estimate_ms;
-  return clearly ? cheapest : level_;
+  const double running_ms = levels_[level_].estimate_ms;
+  return levels_[cheapest].estimate_ms < tuning_.headroom * running_ms ? cheapest : level_;
 }
 
 void LevelBudget::deferRetry(LevelCost& level) const {
