@@ -62,6 +62,7 @@ void LevelBudget::setMaxLevel(int max_level) {
   if (level_ > max_level) {
     level_ = max_level;
     return_level_ = -1;
+    settling_ = true;
   }
 }
 
@@ -77,12 +78,20 @@ void LevelBudget::record(double cost_ms) {
     throw std::invalid_argument(message.str());
   }
   ++cycle_;
+  if (settling_) {
+    // The first cycle at a level pays for the switch (the response resolves the overlaps the
+    // other level left); the level's own cost shows from the next cycle on.
+    settling_ = false;
+    return;
+  }
   LevelCost& ran = levels_[level_];
   takeCost(ran, cost_ms);
   // A try of a finer level must show headroom to stay; a level already chosen stays while
   // it fits: the gap between the two is the hysteresis.
   const bool keep = return_level_ >= 0 ? comfortable(ran) : fits(ran);
+  const int previous = level_;
   level_ = keep ? levelAfterKeeping() : levelAfterLeaving();
+  settling_ = level_ != previous;
 }
 
 void LevelBudget::takeCost(LevelCost& level, double cost_ms) const {
@@ -150,19 +159,23 @@ int LevelBudget::levelAfterLeaving() {
   int next = finestLevel([this](const LevelCost& l) { return comfortable(l); });
   if (next < 0) next = finestLevel([this](const LevelCost& l) { return fits(l); });
   if (next >= 0) return next;
-  // Nothing known fits: a level never run may, the coarser ones first.
+  // Nothing known fits: a level never run may, the coarser ones first; the next finer one
+  // only while going finer has made the cycles cheaper (this level is the cheapest known),
+  // so that a dear stretch of levels is not run through one overrun after another.
   for (int level = level_ - 1; level >= 0; --level) {
     if (!levels_[level].measured) return level;
   }
-  for (int level = level_ + 1; level <= maxLevel(); ++level) {
-    if (!levels_[level].measured) return level;
+  int cheapest = level_;
+  for (int level = 0; level <= maxLevel(); ++level) {
+    if (levels_[level].measured && levels_[level].estimate_ms < levels_[cheapest].estimate_ms) {
+      cheapest = level;
+    }
+  }
+  if (cheapest == level_ && level_ < maxLevel() && !levels_[level_ + 1].measured) {
+    return level_ + 1;
   }
   // The cheapest level, if clearly cheaper than this one: levels of about the same cost
   // would otherwise take turns with the noise of each cycle.
-  int cheapest = level_;
-  for (int level = 0; level <= maxLevel(); ++level) {
-    if (levels_[level].estimate_ms < levels_[cheapest].estimate_ms) cheapest = level;
-  }
   const double running_ms = levels_[level_].estimate_ms;
   return levels_[cheapest].estimate_ms < tuning_.headroom * running_ms ? cheapest : level_;
 }

@@ -35,10 +35,12 @@ struct LevelBudgetTuning {
 /// estimate fits the budget. Levels never run are tried one at a time when the running
 /// level has headroom (the next finer one at once, as the first cycles climb from level
 /// 0; others every explore_period_cycles), and left at once if they do not fit with
-/// headroom. record() allocates nothing.
+/// headroom. The first cycle at a level after a switch pays for the switch and is left out
+/// of its estimate: a level is judged from its second cycle on, so each switch stays for at
+/// least two cycles. record() allocates nothing.
 class LevelBudget {
  public:
-  /// Starts at level 0 (the coarsest) with no estimates.
+  /// Starts at level 0 (the coarsest) with no estimates; its first cycle is a switch.
   /// @throw std::invalid_argument if budget_ms is not finite and > 0, max_level < 0, or a
   /// tuning value is outside its range.
   LevelBudget(double budget_ms, int max_level, const LevelBudgetTuning& tuning = {});
@@ -52,7 +54,8 @@ class LevelBudget {
   void setMaxLevel(int max_level);
 
   /// Takes the cost (detection + response, ms) of the cycle just run at level() into that
-  /// level's estimate and picks the level of the next cycle.
+  /// level's estimate and picks the level of the next cycle (the first cycle after a switch:
+  /// neither, the level stays).
   /// @throw std::invalid_argument if cost_ms is negative or not finite.
   void record(double cost_ms);
 
@@ -95,6 +98,8 @@ class LevelBudget {
   int level_ = 0;
   /// While a try of a finer level runs: the level to come back to if it does not fit; -1.
   int return_level_ = -1;
+  /// The next cost is the first at level_ after a switch (or since the start).
+  bool settling_ = true;
   std::uint64_t cycle_ = 0;
   std::uint64_t next_try_cycle_ = 0;
 };
