@@ -138,7 +138,7 @@ int LevelBudget::levelAfterKeeping() {
 }
 
 int LevelBudget::finerLevelToTry() const {
-  // The first cycles climb from level 0 one level a cycle while each has headroom.
+  // The first cycles climb from level 0, a level every two cycles, while each has headroom.
   if (level_ < maxLevel() && !levels_[level_ + 1].measured) return level_ + 1;
   if (cycle_ < next_try_cycle_) return -1;
   // Coarse to fine: a coarser level is likelier to fit.
