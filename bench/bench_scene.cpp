@@ -10,7 +10,11 @@
 //     after the cycles, over their mean diameter; the whole cycle's time (shape matching
 //     included), and the state each level leaves: mean point speed, and how far point pairs
 //     of two soft objects lie inside half the contact distance (largest and mean, over the
-//     finest level's contacts). -> s2.csv, s2_state.csv, baselines.csv
+//     finest level's contacts). Then `level: auto` (Scene::setCycleBudget) for `cycles`
+//     cycles from the same settled state, with a budget of half the finest level's
+//     detection + response in this run: the share of cycles within it (of all, and of those
+//     after the first 20, in which the level climbs from 0), the levels picked and the mean
+//     cost. -> s2.csv, s2_state.csv, s2_auto.csv, baselines.csv
 //   s3 results_dir [settle=150] [cycles=100]
 //     Three objects (19k points) at the finest level, stage by stage, with the conversion
 //     of every object's points to a PointCloud2 as the node publishes them. -> s3.csv,
@@ -29,6 +33,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -216,6 +221,70 @@ bool runCoarserLevels(int settle, int cycles, const std::vector<Eigen::Vector3d>
   return true;
 }
 
+/// Cycles in budget mode from the settled pile: what they cost and which levels they ran at.
+struct AutoRun {
+  static constexpr int kClimbCycles = 20;
+  int cycles_within_budget = 0;
+  int climbed_cycles_within_budget = 0;  ///< Of the cycles after the first kClimbCycles.
+  double mean_total_ms = 0.0;
+  std::vector<int> cycles_at_level;
+};
+
+std::optional<AutoRun> runAuto(int settle, int cycles,
+                               const std::vector<Eigen::Vector3d>& settled_points,
+                               double budget_ms) {
+  auto scene = settled(dc::DemoScene::kPile, settle);
+  if (softPoints(*scene) != settled_points) {
+    std::fprintf(stderr, "bench_scene s2: the settled pile differs between runs\n");
+    return std::nullopt;
+  }
+  scene->setCycleBudget(budget_ms);
+  AutoRun run;
+  run.cycles_at_level.assign(scene->maxLevel() + 1, 0);
+  for (int c = 0; c < cycles; ++c) {
+    scene->cycle();
+    const dc::CycleStats& s = scene->stats();
+    const double total = s.detection_ms + s.response_ms;
+    run.cycles_within_budget += total <= budget_ms;
+    if (c >= AutoRun::kClimbCycles) run.climbed_cycles_within_budget += total <= budget_ms;
+    run.mean_total_ms += total / cycles;
+    ++run.cycles_at_level[s.level];
+  }
+  return run;
+}
+
+/// The auto run's line and s2_auto.csv: levels as "level:cycles" pairs joined by ';'.
+void reportAuto(const std::string& results_dir, const AutoRun& run, int cycles, double budget_ms,
+                double finest_total_ms) {
+  int lowest = -1, highest = 0;
+  double mean_level = 0.0;
+  std::string levels;
+  for (int level = 0; level < int(run.cycles_at_level.size()); ++level) {
+    const int at = run.cycles_at_level[level];
+    if (at == 0) continue;
+    if (lowest < 0) lowest = level;
+    highest = level;
+    mean_level += double(level) * at / cycles;
+    levels += (levels.empty() ? "" : ";") + std::to_string(level) + ":" + std::to_string(at);
+  }
+  const double within = double(run.cycles_within_budget) / cycles;
+  const int climbed = std::max(cycles - AutoRun::kClimbCycles, 1);
+  const double within_climbed = double(run.climbed_cycles_within_budget) / climbed;
+  std::printf(
+      "\nlevel auto: budget %.3f ms (half the finest level's %.3f ms), %d cycles: %.1f%% within "
+      "budget (%.1f%% after the first %d), levels %d / %.2f / %d (min / mean / max), cycles per "
+      "level %s, mean detection + response %.3f ms\n",
+      budget_ms, finest_total_ms, cycles, 100.0 * within, 100.0 * within_climbed,
+      AutoRun::kClimbCycles, lowest, mean_level, highest, levels.c_str(), run.mean_total_ms);
+  db::CsvAppender csv(results_dir + "/s2_auto.csv",
+                      "budget_ms,finest_total_ms,cycles,within_budget_share,"
+                      "within_budget_share_after_climb,climb_cycles,level_min,level_mean,"
+                      "level_max,cycles_per_level,mean_total_ms");
+  std::fprintf(csv.file(), "%.5f,%.5f,%d,%.4f,%.4f,%d,%d,%.3f,%d,%s,%.5f\n", budget_ms,
+               finest_total_ms, cycles, within, within_climbed, AutoRun::kClimbCycles, lowest,
+               mean_level, highest, levels.c_str(), run.mean_total_ms);
+}
+
 int runS2(const std::string& results_dir, int settle, int cycles) {
   auto reference = settled(dc::DemoScene::kPile, settle);
   const int finest = reference->maxLevel();
@@ -268,6 +337,11 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
                  m.contacts, m.detection_ms, m.response_ms, total, m.shape_matching_ms, whole,
                  coverage[level], rms_rel[level], e.speed_mps, e.deepest_m, e.mean_depth_m);
   }
+  const double finest_total_ms = means[finest].detection_ms + means[finest].response_ms;
+  const double budget_ms = 0.5 * finest_total_ms;
+  const std::optional<AutoRun> run = runAuto(settle, cycles, settled_points, budget_ms);
+  if (!run) return 1;
+  reportAuto(results_dir, *run, cycles, budget_ms, finest_total_ms);
   return 0;
 }
 

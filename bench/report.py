@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """Writes the benchmark report from the CSV files of scripts/run_benchmarks.
 
-Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s3.csv,
-baselines.csv, memory.csv and registration.txt there; writes s1.md, s2.md, s3.md, memory.md,
+Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s2_auto.csv,
+s3.csv, baselines.csv, memory.csv and registration.txt there; writes s1.md, s2.md, s3.md, memory.md,
 summary.md (the targets, met or not) and the plots s1_time_vs_points.png,
 s2_error_vs_time.png, registration_error_vs_time.png.
 Run by Debian's python3 (python3-matplotlib).
@@ -173,6 +173,7 @@ def s2_report(results):
     text += table(["level", "contacts", "detection ms", "response ms", "total ms", "total / baseline",
                    "whole cycle ms", "coverage error m", "RMS error / diameter",
                    "mean point speed after, m/s", "deepest m", "mean depth m"], body)
+    text += s2_auto_text(read(results, "s2_auto.csv")[0])
     write(results, "s2.md", text)
 
     total = [float(r["total_ms"]) for r in rows]
@@ -195,6 +196,29 @@ def s2_report(results):
     fig.savefig(os.path.join(results, "s2_error_vs_time.png"), dpi=110)
     plt.close(fig)
     return rows
+
+
+def auto_most_run_level(auto):
+    """The level of most cycles of the auto run (cycles_per_level: "level:cycles;...")."""
+    pairs = [tuple(map(int, p.split(":"))) for p in auto["cycles_per_level"].split(";")]
+    return max(pairs, key=lambda p: p[1])[0]
+
+
+def s2_auto_text(auto):
+    """The `level: auto` run of S2: the budget, the share within it, the levels picked."""
+    text = (f"\n## level: auto\n\n{auto['cycles']} cycles with `Scene::setCycleBudget` from the "
+            "same settled state, the budget half the finest level's detection + response "
+            f"({float(auto['finest_total_ms']):.2f} ms) in this run; the first cycles climb from "
+            "level 0, one level every two cycles.\n\n")
+    return text + table(
+        ["budget ms", "cycles within budget", f"after the first {auto['climb_cycles']}",
+         "levels min / mean / max", "most run level", "cycles per level",
+         "mean detection + response ms"],
+        [(f"{float(auto['budget_ms']):.2f}", f"{100 * float(auto['within_budget_share']):.1f}%",
+          f"{100 * float(auto['within_budget_share_after_climb']):.1f}%",
+          f"{auto['level_min']} / {float(auto['level_mean']):.2f} / {auto['level_max']}",
+          auto_most_run_level(auto), auto["cycles_per_level"].replace(";", ", "),
+          f"{float(auto['mean_total_ms']):.2f}")])
 
 
 def s3_report(results):
@@ -284,6 +308,19 @@ def peer_target(ms, methods, distance, points, factor):
             f"{measured:.1f}x", "**met**" if measured >= factor else "**not met**")
 
 
+def auto_target(auto):
+    """The target row of S2's `level: auto` run."""
+    within = float(auto["within_budget_share"])
+    most = auto_most_run_level(auto)
+    return ("S2 level: auto, budget half the finest level's detection + response: within it in "
+            ">= 95% of cycles, at a level above 1",
+            f"budget {float(auto['budget_ms']):.2f} ms: {100 * within:.1f}% of {auto['cycles']} "
+            f"cycles within ({100 * float(auto['within_budget_share_after_climb']):.1f}% after the "
+            f"first {auto['climb_cycles']}), levels {auto['level_min']} / {float(auto['level_mean']):.2f} / "
+            f"{auto['level_max']} (min / mean / max), most run {most}",
+            "**met**" if within >= 0.95 and most > 1 else "**not met**")
+
+
 def summary(results, sizes, ms, methods, s2_rows, s3):
     largest, smallest = sizes[-1], sizes[0]
     near = {(p, m): v for (d, p, m), v in ms.items() if d == NEAR_MISS_M}
@@ -312,6 +349,7 @@ def summary(results, sizes, ms, methods, s2_rows, s3):
             (f"S2 finest level ({finest['level']}): detection + response <= 10 ms",
              f"{float(finest['detection_ms']):.2f} + {float(finest['response_ms']):.2f} = {finest_total:.2f} ms",
              verdict(finest_total <= 10)),
+            auto_target(read(results, "s2_auto.csv")[0]),
             ("S3: whole cycle <= 1 ms", f"{s3_cycle:.3f} ms (with the PointCloud2 conversion)",
              verdict(s3_cycle <= 1)),
         ]),
