@@ -18,7 +18,8 @@ using Points = std::vector<Eigen::Vector3d>;
 struct IndexCase {
   std::string name;
   std::size_t count;
-  /// The k-th of `count` points, from a generator seeded per case.
+  /// The k-th of `count` points, from a generator seeded per case. The generators name
+  /// their return type: a deduced one would be an Eigen expression of their temporaries.
   std::function<Eigen::Vector3d(std::size_t k, std::mt19937& random)> point;
 };
 
@@ -68,27 +69,27 @@ TEST_P(NearestPointIndexTest, FindsThePointBruteForceFinds) {
 INSTANTIATE_TEST_SUITE_P(
     Shapes, NearestPointIndexTest,
     ::testing::Values(
-        IndexCase{"OnePoint", 1, [](std::size_t, std::mt19937&) { return Eigen::Vector3d(1, 2, 3); }},
-        IndexCase{"ALeafFull", 8, [](std::size_t, std::mt19937& r) { return inCube(r, 1.0); }},
-        IndexCase{"OneMoreThanALeaf", 9, [](std::size_t, std::mt19937& r) { return inCube(r, 1.0); }},
-        IndexCase{"Cube", 5000, [](std::size_t, std::mt19937& r) { return inCube(r, 0.1); }},
+        IndexCase{"OnePoint", 1, [](std::size_t, std::mt19937&) -> Eigen::Vector3d { return Eigen::Vector3d(1, 2, 3); }},
+        IndexCase{"ALeafFull", 8, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 1.0); }},
+        IndexCase{"OneMoreThanALeaf", 9, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 1.0); }},
+        IndexCase{"Cube", 5000, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 0.1); }},
         IndexCase{"Plane", 3000,
-                  [](std::size_t, std::mt19937& r) { return Eigen::Vector3d(uniform(r, -1, 1), uniform(r, -1, 1), 0.0); }},
+                  [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return Eigen::Vector3d(uniform(r, -1, 1), uniform(r, -1, 1), 0.0); }},
         IndexCase{"Line", 2000,
-                  [](std::size_t, std::mt19937& r) { return Eigen::Vector3d(0.0, uniform(r, -1, 1), 0.0); }},
+                  [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return Eigen::Vector3d(0.0, uniform(r, -1, 1), 0.0); }},
         IndexCase{"AllTheSamePoint", 500,
-                  [](std::size_t, std::mt19937&) { return Eigen::Vector3d(0.3, 0.3, 0.3); }},
+                  [](std::size_t, std::mt19937&) -> Eigen::Vector3d { return Eigen::Vector3d(0.3, 0.3, 0.3); }},
         IndexCase{"GridWithTies", 1000,
-                  [](std::size_t k, std::mt19937&) {
+                  [](std::size_t k, std::mt19937&) -> Eigen::Vector3d {
                     return Eigen::Vector3d(0.01 * (k % 10), 0.01 * (k / 10 % 10), 0.01 * (k / 100));
                   }},
         IndexCase{"TwoClustersFarApart", 2000,
-                  [](std::size_t k, std::mt19937& r) {
+                  [](std::size_t k, std::mt19937& r) -> Eigen::Vector3d {
                     return Eigen::Vector3d(k % 2 ? 10.0 : -10.0, 0, 0) + inCube(r, 0.01);
                   }},
         IndexCase{"FarFromTheOrigin", 2000,
-                  [](std::size_t, std::mt19937& r) { return Eigen::Vector3d(1e5, -1e5, 1e5) + inCube(r, 0.1); }},
-        IndexCase{"TinyScale", 2000, [](std::size_t, std::mt19937& r) { return inCube(r, 1e-4); }}),
+                  [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return Eigen::Vector3d(1e5, -1e5, 1e5) + inCube(r, 0.1); }},
+        IndexCase{"TinyScale", 2000, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 1e-4); }}),
     [](const auto& info) { return info.param.name; });
 
 TEST(NearestPointIndex, EmptyIndexFindsNothing) {
