@@ -137,8 +137,12 @@ struct ClosestPair {
   const Eigen::Vector3d x(points_a.x[s], points_a.y[s], points_a.z[s]);
   const Eigen::Vector3d y(points_b.x[t], points_b.y[t], points_b.z[t]);
   contact.position = 0.5 * (x + y);
-  contact.normal = directionFrom(y, x);
-  contact.depth_m = contact_distance_m - std::sqrt(pair.squared_distance);
+  // The kernels sum the squared distance as Eigen's squaredNorm() does, so its root is
+  // (x - y).norm() to the bit: one root for both the normal and the depth.
+  const double distance_m = std::sqrt(pair.squared_distance);
+  contact.normal = distance_m > 0.0 ? Eigen::Vector3d((x - y) / distance_m)
+                                     : Eigen::Vector3d::UnitZ();
+  contact.depth_m = contact_distance_m - distance_m;
   // Position and depth are those of a closest pair itself.
   contact.error_bound_m = 0.0;
 }
@@ -208,7 +212,7 @@ template <bool Wide>
 
 /// collideBuckets compiled for the wide vectors, its kernels inlined into it; and without.
 #if defined(__GNUC__) && defined(__x86_64__)
-__attribute__((target("avx512f"))) void collideBucketsWide(
+__attribute__((target("avx512f"), flatten)) void collideBucketsWide(
     const SphereTree& a, const NodeState& bucket_a, const SphereTree& b, const NodeState& bucket_b,
     double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
   collideBuckets<true>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
@@ -259,7 +263,7 @@ template <bool Wide>
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
-__attribute__((target("avx512f"))) void collideBucketSetsWide(
+__attribute__((target("avx512f"), flatten)) void collideBucketSetsWide(
     SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a, SphereTree& b,
     const std::uint32_t* buckets_b, std::uint32_t count_b, double contact_distance_m,
     ContactSink& contacts, QueryCounters& counters) {

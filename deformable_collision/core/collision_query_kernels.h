@@ -78,10 +78,11 @@ __attribute__((target("avx512f"))) bool nearestPairSquaredDistanceAvx512(
   return true;
 }
 
-/// nearestPairSquaredDistanceAvx512 and firstPairAtAvx512 in one pass, for up to eight
-/// points of b: each lane keeps the first of a's points at its least distance, so the
-/// closest pair of a contact costs no second pass over the rows.
-__attribute__((target("avx512f"))) bool closestPairOfEightAvx512(
+/// nearestPairSquaredDistanceAvx512 and firstPairAtAvx512 for up to eight points of b, from
+/// one pass over a's points in rows of up to eight: the rows' distances are independent and
+/// their least is taken as a tree, so no row waits on the one before; only a row block
+/// with a pair close enough is searched for its first pair at the least distance.
+__attribute__((target("avx512f"))) inline bool closestPairOfEightAvx512(
     const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
     const double* by, const double* bz, std::uint32_t count_b, double below_squared,
     double& nearest_squared, std::uint32_t& offset_a, std::uint32_t& offset_b) {
@@ -89,25 +90,39 @@ __attribute__((target("avx512f"))) bool closestPairOfEightAvx512(
   const __m512d x = _mm512_maskz_loadu_pd(lanes, bx);
   const __m512d y = _mm512_maskz_loadu_pd(lanes, by);
   const __m512d z = _mm512_maskz_loadu_pd(lanes, bz);
-  __m512d nearest = _mm512_set1_pd(std::numeric_limits<double>::infinity());
-  __m512i row = _mm512_setzero_si512();
-  for (std::uint32_t s = 0; s < count_a; ++s) {
-    const __m512d squared = squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z);
-    const __mmask8 closer = _mm512_mask_cmp_pd_mask(lanes, squared, nearest, _CMP_LT_OQ);
-    nearest = _mm512_mask_mov_pd(nearest, closer, squared);
-    row = _mm512_mask_mov_epi64(row, closer, _mm512_set1_epi64(s));
+  const __m512d infinity = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+  bool found = false;
+  for (std::uint32_t first_row = 0; first_row < count_a; first_row += 8) {
+    const std::uint32_t rows = std::min<std::uint32_t>(8, count_a - first_row);
+    __m512d squared[8];
+    for (std::uint32_t r = 0; r < 8; ++r) {
+      // Rows past a's points repeat its first one, which cannot come first or closer.
+      const std::uint32_t s = first_row + (r < rows ? r : 0);
+      squared[r] = _mm512_mask_mov_pd(infinity, lanes,
+                                      squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z));
+    }
+    const __m512d least_of_rows = _mm512_min_pd(
+        _mm512_min_pd(_mm512_min_pd(squared[0], squared[1]), _mm512_min_pd(squared[2], squared[3])),
+        _mm512_min_pd(_mm512_min_pd(squared[4], squared[5]), _mm512_min_pd(squared[6], squared[7])));
+    const double least = _mm512_reduce_min_pd(least_of_rows);
+    // Most leaf pairs in reach have no pair close enough: they end on one comparison.
+    if (!(least < below_squared)) continue;
+    // Row-major order of the pairs at the least distance: the first set bit is the first pair.
+    std::uint64_t at_least = 0;
+    const __m512d target = _mm512_set1_pd(least);
+    for (std::uint32_t r = 0; r < rows; ++r) {
+      at_least |= static_cast<std::uint64_t>(
+                      _mm512_mask_cmp_pd_mask(lanes, squared[r], target, _CMP_EQ_OQ))
+                  << (8 * r);
+    }
+    const auto first = static_cast<std::uint32_t>(__builtin_ctzll(at_least));
+    below_squared = least;
+    nearest_squared = least;
+    offset_a = first_row + (first >> 3);
+    offset_b = first & 7;
+    found = true;
   }
-  if (_mm512_cmp_pd_mask(nearest, _mm512_set1_pd(below_squared), _CMP_LT_OQ) == 0) return false;
-  const __m512d least = leastInEveryLaneAvx512(nearest);
-  nearest_squared = _mm512_cvtsd_f64(least);
-  // Of the lanes at the least distance, the one with the first row, then the first lane.
-  const __mmask8 at_least = _mm512_mask_cmp_pd_mask(lanes, nearest, least, _CMP_EQ_OQ);
-  const __m512i order = _mm512_add_epi64(_mm512_slli_epi64(row, 3),
-                                         _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0));
-  const auto first = static_cast<std::uint64_t>(_mm512_mask_reduce_min_epi64(at_least, order));
-  offset_a = static_cast<std::uint32_t>(first >> 3);
-  offset_b = static_cast<std::uint32_t>(first & 7);
-  return true;
+  return found;
 }
 
 /// The first pair, a's points in order and then b's, at `squared_distance` (one that
