@@ -30,6 +30,13 @@ struct FixedPlanes {
   std::vector<double> extent_against;
 };
 
+/// A change of every point's velocity by `velocity + spin x (x - center)`.
+struct RigidVelocityChange {
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  Eigen::Vector3d spin = Eigen::Vector3d::Zero();
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+};
+
 /// The dents of a dynamic object: each contact node's push, kept until the object's move
 /// over all its pairs is known, and the per-point sums they turn into.
 struct DentScratch {
@@ -57,6 +64,13 @@ struct DentScratch {
   /// Turns the sums into one mean displacement per dented point (in displacements) and
   /// clears them.
   void averageDisplacements();
+  /// Makes the dented points' velocity changes (in displacements) leave the object's momentum
+  /// and angular momentum as they were, but for slowing its spin: returns the rigid change
+  /// every point gives up for them (no point's faster than the fastest of them, its points
+  /// lying within `reach_m` of the centre of mass) and adds it back to the dented points'.
+  RigidVelocityChange balanceVelocityChanges(const std::vector<Eigen::Vector3d>& positions,
+                                             const RigidMotion& motion, double point_mass_kg,
+                                             double reach_m);
 
   std::vector<PendingDent> pending;
   std::vector<DentDepth> depths;

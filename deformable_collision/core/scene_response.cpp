@@ -161,10 +161,20 @@ void Scene::applyObjectResponse(Object& object) {
       config_.contact_distance_m + config_.dt_s * object.body.meanVelocity().norm();
   const double reach = object.translation.norm();
   if (reach > allowed) object.translation *= allowed / reach;
-  object.body.moveRigidly(object.translation, object.velocity_change);
+  object.dents.averageDisplacements();
+  if (object.dents.displacements.empty()) {
+    object.body.moveRigidly(object.translation, object.velocity_change);
+  } else {
+    const RigidMotion motion = object.body.rigidMotion();
+    const Sphere& bound = object.tree.sphere(0);
+    const scene_internal::RigidVelocityChange balance = object.dents.balanceVelocityChanges(
+        object.body.positions(), motion, object.body.pointMassKg(),
+        (bound.center - motion.center).norm() + bound.radius);
+    object.body.moveRigidly(object.translation, object.velocity_change - balance.velocity,
+                            -balance.spin, balance.center + object.translation);
+  }
   object.translation.setZero();
   object.velocity_change.setZero();
-  object.dents.averageDisplacements();
   stats_.points_displaced += object.dents.displacements.size();
   object.body.displacePoints(object.dents.displacements);
   object.stale = true;

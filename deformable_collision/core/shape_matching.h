@@ -76,6 +76,15 @@ struct PointDisplacement {
   Eigen::Vector3d velocity_change_mps = Eigen::Vector3d::Zero();
 };
 
+/// The rigid motion of a whole object, from its clusters' sums: its centre of mass, velocity,
+/// angular velocity about that centre and inertia tensor there.
+struct RigidMotion {
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  Eigen::Vector3d spin = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();  ///< kg m^2
+};
+
 /// What the hierarchy update of one cluster needs: the shape-matching registration of the
 /// cluster's current points (the least-squares fit that the next step builds its goals
 /// from), x_i ~ transform * q~_i + translation, with q~ the quadratic features of the rest
@@ -166,6 +175,13 @@ class ShapeMatchingBody {
   /// @throw std::invalid_argument if the offset or the velocity is not finite; the state is
   ///        then unchanged.
   void moveRigidly(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps);
+  /// The same, and each point's velocity also turns by `spin_change_radps` about `center`
+  /// (taken after the offset): v_i += velocity_change + spin_change x (x_i - center).
+  void moveRigidly(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps,
+                   const Eigen::Vector3d& spin_change_radps, const Eigen::Vector3d& center_m);
+
+  /// The whole object's rigid motion (O(clusters)).
+  RigidMotion rigidMotion() const;
 
   /// Mass-weighted mean velocity of the object, from the fit sums (O(clusters)).
   Eigen::Vector3d meanVelocity() const;

@@ -22,14 +22,7 @@ using detail::PartialMoments;
 using detail::SlotLanes;
 using detail::StepMotion;
 
-/// The rigid motion of the whole object, which damping keeps: its centre of mass, velocity
-/// and angular velocity, from the clusters' sums.
-struct RigidMotion {
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();
-  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
-  Eigen::Vector3d spin = Eigen::Vector3d::Zero();
-};
-
+/// The rigid motion of the whole object, which damping keeps, from the clusters' sums.
 RigidMotion objectRigidMotion(const std::vector<Cluster>& clusters,
                               const std::vector<ClusterDeformation>& deformations,
                               const std::vector<ClusterSums>& cluster_sums) {
@@ -45,7 +38,7 @@ RigidMotion objectRigidMotion(const std::vector<Cluster>& clusters,
   object.center = origin + object.center / mass;
   object.velocity = momentum / mass;
   Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d& inertia = object.inertia;
   for (std::size_t k = 0; k < clusters.size(); ++k) {
     const ClusterSums& sums = cluster_sums[k];
     const double cluster_mass = clusters[k].total_weight_kg;
@@ -216,9 +209,17 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
 
 void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
                                     const Eigen::Vector3d& velocity_change_mps) {
+  moveRigidly(offset_m, velocity_change_mps, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+}
+
+void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
+                                    const Eigen::Vector3d& velocity_change_mps,
+                                    const Eigen::Vector3d& spin_change_radps,
+                                    const Eigen::Vector3d& center_m) {
   if (!offset_m.allFinite()) throw std::invalid_argument("translation is not finite");
-  if (!velocity_change_mps.allFinite()) {
-    throw std::invalid_argument("velocity change is not finite");
+  if (!velocity_change_mps.allFinite() || !spin_change_radps.allFinite() ||
+      !center_m.allFinite()) {
+    throw std::invalid_argument("velocity change, spin or centre is not finite");
   }
   // Local pointers and copies: written through one vector's data, the other's pointer and
   // the arguments would otherwise be read again for every point.
@@ -226,9 +227,11 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
   Eigen::Vector3d* velocities = velocities_.data();
   const Eigen::Vector3d offset = offset_m;
   const Eigen::Vector3d change = velocity_change_mps;
+  const Eigen::Vector3d spin = spin_change_radps;
+  const Eigen::Vector3d center = center_m;
   for (std::size_t i = 0, count = positions_.size(); i < count; ++i) {
     positions[i] += offset;
-    velocities[i] += change;
+    velocities[i] += change + spin.cross(positions[i] - center);
   }
   const double offset_norm = offset_m.norm();
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
@@ -251,7 +254,19 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
     deformation.translation += offset_m;
     sums.momentum += mass * velocity_change_mps;
     sums.angular_momentum += sums.offset.cross(velocity_change_mps);
+    // The turn: sum w (x - center) = offset + mass (reference - center), and about the
+    // reference sum w r x (spin x r) is the second moment's inertia times the spin.
+    const Eigen::Vector3d reference_from_center = sums.reference - center_m;
+    sums.momentum += spin_change_radps.cross(sums.offset + mass * reference_from_center);
+    sums.angular_momentum +=
+        (sums.second_moment.trace() * Eigen::Matrix3d::Identity() - sums.second_moment) *
+            spin_change_radps +
+        sums.offset.cross(spin_change_radps.cross(reference_from_center));
   }
+}
+
+RigidMotion ShapeMatchingBody::rigidMotion() const {
+  return objectRigidMotion(clusters_, deformations_, cluster_sums_);
 }
 
 void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements) {

@@ -578,6 +578,78 @@ TEST(MoveRigidly, BoundCoversTheRoundingOfManyMovesFarFromTheOrigin) {
   }
 }
 
+TEST(MoveRigidly, TurnMovesThePointsVelocitiesAndTheSumsFollow) {
+  // The sums that moveRigidly updates without visiting the points feed the damping and
+  // rigidMotion: a copy that sums its points afresh must report the same motion and take
+  // the same next step.
+  for (const auto mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+    SCOPED_TRACE(toString(mode));
+    ShapeMatchingConfig config = configFor(mode, 3);
+    config.damping = 0.2;
+    ShapeMatchingBody body(sampleEllipsoid(600, {0.4, 0.3, 0.2}, 47), config);
+    Points velocities;
+    for (const auto& p : body.positions()) {
+      velocities.push_back(Eigen::Vector3d(0.5, -1.0, 2.0).cross(p));
+    }
+    body.setVelocities(velocities);
+    for (int s = 0; s < 5; ++s) body.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    const Points before = body.velocities();
+    const Eigen::Vector3d offset(0.02, -0.01, 0.03);
+    const Eigen::Vector3d change(0.1, 0.2, -0.3);
+    const Eigen::Vector3d turn(-0.7, 0.4, 1.5);
+    const Eigen::Vector3d center =
+        centroid(body.positions()) + offset + Eigen::Vector3d(0.05, 0.0, 0.0);
+    body.moveRigidly(offset, change, turn, center);
+    double worst_velocity = 0.0;
+    for (std::size_t i = 0; i < body.pointCount(); ++i) {
+      const Eigen::Vector3d expected =
+          before[i] + change + turn.cross(body.positions()[i] - center);
+      worst_velocity = std::max(worst_velocity, (body.velocities()[i] - expected).norm());
+    }
+    EXPECT_LT(worst_velocity, 1e-12);
+
+    ShapeMatchingBody fresh = body;
+    fresh.setPositions(body.positions());
+    fresh.setVelocities(body.velocities());
+    const RigidMotion moved = body.rigidMotion();
+    const RigidMotion summed = fresh.rigidMotion();
+    EXPECT_LT((moved.center - summed.center).norm(), 1e-12);
+    EXPECT_LT((moved.velocity - summed.velocity).norm(), 1e-12);
+    EXPECT_LT((moved.spin - summed.spin).norm(), 1e-10);
+    EXPECT_LT((moved.inertia - summed.inertia).norm(), 1e-12);
+    body.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    fresh.step(0.01, Eigen::Vector3d(0, 0, -9.81));
+    double worst = 0.0;
+    for (std::size_t i = 0; i < body.pointCount(); ++i) {
+      worst = std::max(worst, (body.positions()[i] - fresh.positions()[i]).norm());
+    }
+    EXPECT_LT(worst, 1e-10);
+  }
+}
+
+TEST(RigidMotion, IsTheMotionOfTheWholeObject) {
+  const Points rest = sampleBox(500, {0.3, 0.2, 0.1}, 5);
+  ShapeMatchingBody body(rest, configFor(DeformationMode::kQuadratic, 3));
+  const Eigen::Vector3d center = centroid(rest);
+  const Eigen::Vector3d spin(0.3, -0.2, 1.0);
+  const Eigen::Vector3d velocity(1.0, 0.0, -2.0);
+  Points velocities;
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+  for (const auto& p : rest) {
+    velocities.push_back(velocity + spin.cross(p - center));
+    const Eigen::Vector3d arm = p - center;
+    inertia += body.pointMassKg() *
+               (arm.squaredNorm() * Eigen::Matrix3d::Identity() - arm * arm.transpose());
+  }
+  body.setVelocities(velocities);
+  const RigidMotion motion = body.rigidMotion();
+  EXPECT_LT((motion.center - center).norm(), 1e-12);
+  EXPECT_LT((motion.velocity - velocity).norm(), 1e-12);
+  EXPECT_LT((motion.spin - spin).norm(), 1e-10);
+  EXPECT_LT((motion.inertia - inertia).norm(), 1e-12 * inertia.norm());
+}
+
 TEST(SetVelocities, SpinIsKeptByTheDampingAndMomentumConserved) {
   ShapeMatchingConfig config = configFor(DeformationMode::kLinear, 2);
   config.damping = 0.5;
