@@ -353,7 +353,7 @@ Scene::TouchedSurface Scene::touchedSurface(const ResolvingPair& pair,
 // then undo only about the layer's thickness of a step that took more. So the deepest of
 // the object's points in line with the touched nodes (within their spheres across the
 // pair's normal), measured against the highest of their surfaces, is brought back by moving
-// the whole object when it lies deeper than the contacts' pushes: nothing dents it.
+// the whole object when the pair's move leaves it deeper than that: nothing dents it.
 void Scene::clearPassedPoints(ResolvingPair& pair) {
   const bool a_fixed = !pair.a.dynamic();
   const Object& moving = a_fixed ? pair.b : pair.a;
@@ -368,9 +368,10 @@ void Scene::clearPassedPoints(ResolvingPair& pair) {
                        moving.translation.dot(away);
   double deepest_push = 0.0;
   for (const ContactPush& push : pushes_) deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
-  if (depth <= deepest_push) return;
   // Points past the contacts' reach are cleared; those within it only brought back within
-  // the contact distance, where the next cycle's contacts see them.
+  // the contact distance, where the next cycle's contacts see them. Even within it the
+  // contacts only dent their own nodes' points, and a soft object moves by less than its
+  // deepest push: the points in line outside those nodes would stay where the step put them.
   const double needed =
       depth > deepest_push + config_.contact_distance_m ? depth : depth - config_.contact_distance_m;
   Eigen::Vector3d& move = a_fixed ? pair.move_b : pair.move_a;
