@@ -7,8 +7,7 @@
 #include <gtest/gtest.h>
 #include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
-#include <tf2_ros/static_transform_broadcaster.h>
-#include <tf2_ros/transform_broadcaster.h>
+#include <tf2_msgs/TFMessage.h>
 
 #include <cmath>
 #include <limits>
@@ -31,6 +30,8 @@ using sensor_msgs::PointCloud2;
 
 const std::string kManager = "/register_manager";
 const std::string kNode = "/register_node";
+/// The clouds' frame: identity under test_camera, whose pose moves every frame.
+const std::string kCameraOpticalFrame = "test_camera_optical";
 /// The box's half extents: 8 x 5 x 3 cm, no two alike, so that every rotation shows.
 const Eigen::Vector3d kHalfExtents(0.04, 0.025, 0.015);
 constexpr int kFrames = 30;
@@ -231,10 +232,16 @@ class RegisterTest : public ::testing::Test {
           if (stats->input_latency_ms > 0.0) applied_ = stats;
           last_stats_ = stats;
         }));
+    // As a camera driver does, the optical frame hangs static under the moving camera: tf
+    // then knows the clouds' frame from the node's start, and a cloud that comes before its
+    // camera's pose waits for it instead of being dropped as in a frame tf does not know.
+    sendStaticTransform(toTransformStamped(Eigen::Isometry3d::Identity(), ros::Time::now(),
+                                           "test_camera", kCameraOpticalFrame));
     ASSERT_TRUE(loadNodelet(node, params)) << "the nodelet did not start";
     ASSERT_TRUE(waitFor([this] {
       return last_stats_ && camera_publisher_.getNumSubscribers() > 0 &&
-             deformed_subscriber_.getNumPublishers() > 0;
+             deformed_subscriber_.getNumPublishers() > 0 && tf_publisher_.getNumSubscribers() > 0 &&
+             static_tf_publisher_.getNumSubscribers() > 0;
     })) << "the nodelet did not connect";
   }
 
@@ -244,7 +251,7 @@ class RegisterTest : public ::testing::Test {
     const std::string topic = "/register_test/camera_points";
     ASSERT_NO_FATAL_FAILURE(connectNode(kNode, topic, nodeParams(topic, model_file_)));
     EXPECT_EQ(last_stats_->objects, 0u) << "the model's frame is not known yet";
-    static_broadcaster_.sendTransform(toTransformStamped(boxPose(0), ros::Time::now(), "world", "box_start"));
+    sendStaticTransform(toTransformStamped(boxPose(0), ros::Time::now(), "world", "box_start"));
     ASSERT_TRUE(waitFor([this] { return last_stats_->objects == 1u; }))
         << "the model was not placed once its frame came";
   }
@@ -253,8 +260,10 @@ class RegisterTest : public ::testing::Test {
   /// registered it; returns the model as ~deformed/box published it then.
   Points publishAndWait(const Eigen::Isometry3d& camera, PointCloud2 cloud) {
     const ros::Time stamp = ros::Time::now();
-    broadcaster_.sendTransform(toTransformStamped(camera, stamp, "world", "test_camera"));
-    cloud.header.frame_id = "test_camera";
+    tf2_msgs::TFMessage camera_pose;
+    camera_pose.transforms.push_back(toTransformStamped(camera, stamp, "world", "test_camera"));
+    tf_publisher_.publish(camera_pose);
+    cloud.header.frame_id = kCameraOpticalFrame;
     cloud.header.stamp = stamp;
     const std::uint64_t received = last_stats_->clouds_received;
     applied_.reset();
@@ -274,9 +283,18 @@ class RegisterTest : public ::testing::Test {
 
   const RegistrationStats& registration() const { return applied_->registrations.at(0); }
 
+  /// Adds `transform` to the latched static ones, as tf2_ros's static broadcaster does.
+  void sendStaticTransform(const geometry_msgs::TransformStamped& transform) {
+    static_transforms_.transforms.push_back(transform);
+    static_tf_publisher_.publish(static_transforms_);
+  }
+
   ros::NodeHandle handle_;
-  tf2_ros::TransformBroadcaster broadcaster_;
-  tf2_ros::StaticTransformBroadcaster static_broadcaster_;
+  // tf's topics published as its broadcasters do, on publishers whose connection to the
+  // node the test waits for: a camera pose sent before it would be lost.
+  ros::Publisher tf_publisher_ = handle_.advertise<tf2_msgs::TFMessage>("/tf", 100);
+  ros::Publisher static_tf_publisher_ = handle_.advertise<tf2_msgs::TFMessage>("/tf_static", 100, true);
+  tf2_msgs::TFMessage static_transforms_;
   ros::Publisher camera_publisher_;
   ros::Subscriber deformed_subscriber_;
   ros::Subscriber stats_subscriber_;
