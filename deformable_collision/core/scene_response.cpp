@@ -8,6 +8,9 @@
 namespace deformable_collision {
 namespace {
 
+/// cos 45 degrees: a fixed surface carries a dynamic object if it faces more up than sideways.
+constexpr double kCarryingCosine = 0.70710678118654752;
+
 /// The change of a's velocity relative to b's that stops their approach along `normal` and
 /// brakes their sliding across it by at most `friction` times that (Coulomb).
 Eigen::Vector3d stopApproach(const Eigen::Vector3d& relative, const Eigen::Vector3d& normal,
@@ -601,6 +604,14 @@ bool Scene::isSupportLink(const ContactRun& run) {
   for (std::size_t k = run.begin; k < run.end; ++k) {
     const SphereContact& c = contacts_[k].contact;
     away += fixedSurface(pair, a_fixed ? c.node_a : c.node_b).away;
+  }
+  // Only a surface that faces more up than sideways carries what lies on it. A wall beside
+  // an object of a pile would otherwise rank it with the objects on the floor: sharing the
+  // stop of each step of gravity with the one it rests on, which the floor then stops
+  // whole, it would keep half of it every cycle and be held up by the pushes alone.
+  const double gravity = config_.gravity_mps2.norm();
+  if (gravity > 0.0 && -away.normalized().dot(config_.gravity_mps2) < kCarryingCosine * gravity) {
+    return false;
   }
   const TouchedSurface touched = touchedSurface(pair, away.normalized());
   const auto& positions = moving.body.positions();

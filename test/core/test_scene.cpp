@@ -221,6 +221,97 @@ INSTANTIATE_TEST_SUITE_P(
     });
 
 // ---------------------------------------------------------------------------------------
+// Two boxes stacked on the floor, both against a wall, rest at every level: no cycle of the
+// last 50 leaves either box moving. A wall beside the upper box does not carry it; ranked
+// as carried like the lower box, it shared each step's stop with that box, which the floor
+// then stopped whole, and it kept a step of gravity (98 mm/s at h = 0.01 s) every cycle,
+// held up by the pushes alone: so did most of the pile along its walls.
+
+struct WallStackCase {
+  StackMode mode;
+  double stiffness;
+  int level;
+};
+
+void PrintTo(const WallStackCase& c, std::ostream* os) {
+  *os << c.mode.name << " stiffness " << c.stiffness << " level " << c.level;
+}
+
+/// A 0.8 m wide wall of two layers 2 cm apart standing on floorPoints(), its face the plane
+/// x = `face_x_m`, 0.5 m high.
+Points wallPoints(double face_x_m) {
+  Points wall;
+  for (int j = -20; j <= 20; ++j) {
+    for (int k = 1; k <= 25; ++k) {
+      for (int layer = 0; layer < 2; ++layer) wall.emplace_back(face_x_m - 0.02 * layer, 0.02 * j, 0.02 * k);
+    }
+  }
+  return wall;
+}
+
+class WallStackTest : public ::testing::TestWithParam<WallStackCase> {};
+
+TEST_P(WallStackTest, RestsAgainstTheWall) {
+  const WallStackCase& c = GetParam();
+  auto scene = sceneOnFloor(c.level);
+  constexpr double kWallFace = -0.1, kHalfSide = 0.06;
+  const double gap = scene->config().contact_distance_m / 2;
+  ObjectConfig wall;
+  wall.name = "wall";
+  wall.kind = ObjectKind::kStatic;
+  scene->addObject(wall, wallPoints(kWallFace));
+  std::vector<std::size_t> boxes;
+  for (int k = 0; k < 2; ++k) {
+    ObjectConfig box;
+    box.name = "box_" + std::to_string(k);
+    box.shape.mode = c.mode.mode;
+    box.shape.clusters = c.mode.clusters;
+    box.shape.stiffness = c.stiffness;
+    Points points = sampleBox(500, {kHalfSide, kHalfSide, kHalfSide}, 3 + k);
+    for (auto& p : points) {
+      p.x() += kWallFace + gap + kHalfSide;
+      p.z() += gap + kHalfSide + k * (2 * kHalfSide + gap);
+    }
+    boxes.push_back(scene->addObject(box, points));
+  }
+  constexpr int kCycles = 300, kLateCycles = 50;
+  double late_fastest = 0.0;
+  for (int cycle = 0; cycle < kCycles; ++cycle) {
+    scene->cycle();
+    ASSERT_TRUE(allFinite(*scene)) << "cycle " << cycle;
+    if (cycle < kCycles - kLateCycles) continue;
+    for (const std::size_t box : boxes) {
+      late_fastest = std::max(late_fastest, scene->body(box).meanVelocity().norm());
+    }
+  }
+  EXPECT_LT(late_fastest, 1e-3) << "m/s over the last " << kLateCycles << " cycles";
+  const Eigen::Vector3d lower = meanPosition(scene->body(boxes[0]));
+  const Eigen::Vector3d upper = meanPosition(scene->body(boxes[1]));
+  EXPECT_GT(upper.z() - lower.z(), 2 * kHalfSide - scene->config().contact_distance_m)
+      << "the upper box sank into the lower one";
+  EXPECT_GT(lower.x() - kHalfSide, kWallFace) << "into the wall";
+}
+
+std::vector<WallStackCase> wallStackCases() {
+  std::vector<WallStackCase> cases;
+  for (const StackMode mode : {StackMode{"rigid", DeformationMode::kRigid, 1},
+                               StackMode{"linear", DeformationMode::kLinear, 1},
+                               StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}}) {
+    for (const double stiffness : {0.2, 1.0}) {
+      for (const int level : {0, 1, 2, 3, 4, 5, -1}) cases.push_back({mode, stiffness, level});
+    }
+  }
+  return cases;
+}
+
+INSTANTIATE_TEST_SUITE_P(ModesStiffnessesAndLevels, WallStackTest, ::testing::ValuesIn(wallStackCases()),
+                         [](const auto& info) {
+                           const WallStackCase& c = info.param;
+                           return std::string(c.mode.name) + (c.stiffness < 1.0 ? "_soft" : "_stiff") +
+                                  (c.level < 0 ? std::string("_finest") : "_level_" + std::to_string(c.level));
+                         });
+
+// ---------------------------------------------------------------------------------------
 // Six soft ellipsoids (436 points each, stiffness 0.5, in the pile's modes) dropped on each
 // other stay apart under the load of those above, at every level: no two points of two
 // objects come closer than a quarter of the contact distance over cycles 200 to 400. Their
