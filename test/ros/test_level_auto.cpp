@@ -12,7 +12,6 @@
 #include <string>
 
 #include "deformable_collision/ContactArray.h"
-#include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
 #include "deformable_collision/Stats.h"
 #include "node_test_support.h"
