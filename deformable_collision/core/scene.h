@@ -278,6 +278,7 @@ class Scene {
   std::vector<ContactPush> pushes_;
   std::vector<std::uint32_t> support_queue_;
   std::vector<ContactRun> contact_runs_;  ///< The pairs of contacts_, in its order.
+  std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;

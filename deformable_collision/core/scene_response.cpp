@@ -111,7 +111,22 @@ void Scene::respond() {
   // dents where it touches most. Velocity corrections of single nodes do not survive the
   // next goal step: it spreads them over the object, so a resting object sinks, or,
   // cancelling the motion the goals give the pushed points, bounces.
-  for (const ContactRun& run : contact_runs_) {
+  // Shock propagation resolves the pairs from the supports up: a pair sees the objects under
+  // it already stopped against what carries them. In contact order, an object stopped
+  // against the one under it before that one's own pair with the floor was resolved kept
+  // that one's step of gravity every cycle, held up by the pushes alone.
+  resolve_order_.clear();
+  for (std::uint32_t r = 0; r < contact_runs_.size(); ++r) resolve_order_.push_back(r);
+  const auto nearer_support = [this](const ContactRun& run) {
+    return std::min(objects_[run.object_a]->support_depth, objects_[run.object_b]->support_depth);
+  };
+  std::sort(resolve_order_.begin(), resolve_order_.end(), [&](std::uint32_t x, std::uint32_t y) {
+    const std::uint32_t depth_x = nearer_support(contact_runs_[x]);
+    const std::uint32_t depth_y = nearer_support(contact_runs_[y]);
+    return depth_x != depth_y ? depth_x < depth_y : x < y;
+  });
+  for (const std::uint32_t r : resolve_order_) {
+    const ContactRun& run = contact_runs_[r];
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
     if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);

@@ -221,20 +221,30 @@ INSTANTIATE_TEST_SUITE_P(
     });
 
 // ---------------------------------------------------------------------------------------
-// Two boxes stacked on the floor, both against a wall, rest at every level: no cycle of the
-// last 50 leaves either box moving. A wall beside the upper box does not carry it; ranked
-// as carried like the lower box, it shared each step's stop with that box, which the floor
-// then stopped whole, and it kept a step of gravity (98 mm/s at h = 0.01 s) every cycle,
-// held up by the pushes alone: so did most of the pile along its walls.
+// Boxes stacked on the floor rest at every level: no cycle of the last 50 leaves a box
+// moving, and none sinks into the one below.
+// - Two boxes against a wall. A wall beside the upper box does not carry it; ranked as
+//   carried like the lower box, it shared each step's stop with that box, which the floor
+//   then stopped whole, and it kept a step of gravity (98 mm/s at h = 0.01 s) every cycle,
+//   held up by the pushes alone, or sank into the lower box: so did most of the pile along
+//   its walls.
+// - Three boxes added to the scene from the top down, so that the contact order puts the
+//   upper pairs first. Resolved in that order, the top box was stopped against the middle
+//   one before the middle one was stopped against the bottom one, and kept its step of
+//   gravity every cycle; the pairs are resolved from the supports up.
 
-struct WallStackCase {
+enum class StackArrangement { kTwoAgainstAWall, kThreeAddedTopFirst };
+
+struct RestingStackCase {
+  StackArrangement arrangement;
   StackMode mode;
   double stiffness;
   int level;
 };
 
-void PrintTo(const WallStackCase& c, std::ostream* os) {
-  *os << c.mode.name << " stiffness " << c.stiffness << " level " << c.level;
+void PrintTo(const RestingStackCase& c, std::ostream* os) {
+  *os << (c.arrangement == StackArrangement::kTwoAgainstAWall ? "two against a wall, " : "three added top first, ")
+      << c.mode.name << " stiffness " << c.stiffness << " level " << c.level;
 }
 
 /// A 0.8 m wide wall of two layers 2 cm apart standing on floorPoints(), its face the plane
@@ -249,19 +259,25 @@ Points wallPoints(double face_x_m) {
   return wall;
 }
 
-class WallStackTest : public ::testing::TestWithParam<WallStackCase> {};
+class RestingStackTest : public ::testing::TestWithParam<RestingStackCase> {};
 
-TEST_P(WallStackTest, RestsAgainstTheWall) {
-  const WallStackCase& c = GetParam();
+TEST_P(RestingStackTest, RestsAndStaysApart) {
+  const RestingStackCase& c = GetParam();
   auto scene = sceneOnFloor(c.level);
   constexpr double kWallFace = -0.1, kHalfSide = 0.06;
   const double gap = scene->config().contact_distance_m / 2;
-  ObjectConfig wall;
-  wall.name = "wall";
-  wall.kind = ObjectKind::kStatic;
-  scene->addObject(wall, wallPoints(kWallFace));
-  std::vector<std::size_t> boxes;
-  for (int k = 0; k < 2; ++k) {
+  const bool against_wall = c.arrangement == StackArrangement::kTwoAgainstAWall;
+  if (against_wall) {
+    ObjectConfig wall;
+    wall.name = "wall";
+    wall.kind = ObjectKind::kStatic;
+    scene->addObject(wall, wallPoints(kWallFace));
+  }
+  const int count = against_wall ? 2 : 3;
+  // boxes[k] is the k-th from the floor, whichever order the scene has them in.
+  std::vector<std::size_t> boxes(count);
+  for (int n = 0; n < count; ++n) {
+    const int k = against_wall ? n : count - 1 - n;
     ObjectConfig box;
     box.name = "box_" + std::to_string(k);
     box.shape.mode = c.mode.mode;
@@ -269,10 +285,10 @@ TEST_P(WallStackTest, RestsAgainstTheWall) {
     box.shape.stiffness = c.stiffness;
     Points points = sampleBox(500, {kHalfSide, kHalfSide, kHalfSide}, 3 + k);
     for (auto& p : points) {
-      p.x() += kWallFace + gap + kHalfSide;
+      if (against_wall) p.x() += kWallFace + gap + kHalfSide;
       p.z() += gap + kHalfSide + k * (2 * kHalfSide + gap);
     }
-    boxes.push_back(scene->addObject(box, points));
+    boxes[k] = scene->addObject(box, points);
   }
   constexpr int kCycles = 300, kLateCycles = 50;
   double late_fastest = 0.0;
@@ -285,29 +301,39 @@ TEST_P(WallStackTest, RestsAgainstTheWall) {
     }
   }
   EXPECT_LT(late_fastest, 1e-3) << "m/s over the last " << kLateCycles << " cycles";
-  const Eigen::Vector3d lower = meanPosition(scene->body(boxes[0]));
-  const Eigen::Vector3d upper = meanPosition(scene->body(boxes[1]));
-  EXPECT_GT(upper.z() - lower.z(), 2 * kHalfSide - scene->config().contact_distance_m)
-      << "the upper box sank into the lower one";
-  EXPECT_GT(lower.x() - kHalfSide, kWallFace) << "into the wall";
+  for (int k = 1; k < count; ++k) {
+    const Eigen::Vector3d lower = meanPosition(scene->body(boxes[k - 1]));
+    const Eigen::Vector3d upper = meanPosition(scene->body(boxes[k]));
+    EXPECT_GT(upper.z() - lower.z(), 2 * kHalfSide - scene->config().contact_distance_m)
+        << "box " << k << " sank into the one below";
+  }
+  if (against_wall) {
+    EXPECT_GT(meanPosition(scene->body(boxes[0])).x() - kHalfSide, kWallFace) << "into the wall";
+  }
 }
 
-std::vector<WallStackCase> wallStackCases() {
-  std::vector<WallStackCase> cases;
-  for (const StackMode mode : {StackMode{"rigid", DeformationMode::kRigid, 1},
-                               StackMode{"linear", DeformationMode::kLinear, 1},
-                               StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}}) {
-    for (const double stiffness : {0.2, 1.0}) {
-      for (const int level : {0, 1, 2, 3, 4, 5, -1}) cases.push_back({mode, stiffness, level});
+std::vector<RestingStackCase> restingStackCases() {
+  std::vector<RestingStackCase> cases;
+  for (const StackArrangement arrangement :
+       {StackArrangement::kTwoAgainstAWall, StackArrangement::kThreeAddedTopFirst}) {
+    for (const StackMode mode : {StackMode{"rigid", DeformationMode::kRigid, 1},
+                                 StackMode{"linear", DeformationMode::kLinear, 1},
+                                 StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}}) {
+      for (const double stiffness : {0.2, 1.0}) {
+        for (const int level : {0, 1, 2, 3, 4, 5, -1}) cases.push_back({arrangement, mode, stiffness, level});
+      }
     }
   }
   return cases;
 }
 
-INSTANTIATE_TEST_SUITE_P(ModesStiffnessesAndLevels, WallStackTest, ::testing::ValuesIn(wallStackCases()),
-                         [](const auto& info) {
-                           const WallStackCase& c = info.param;
-                           return std::string(c.mode.name) + (c.stiffness < 1.0 ? "_soft" : "_stiff") +
+INSTANTIATE_TEST_SUITE_P(ArrangementsModesStiffnessesAndLevels, RestingStackTest,
+                         ::testing::ValuesIn(restingStackCases()), [](const auto& info) {
+                           const RestingStackCase& c = info.param;
+                           return std::string(c.arrangement == StackArrangement::kTwoAgainstAWall
+                                                  ? "against_a_wall_"
+                                                  : "added_top_first_") +
+                                  c.mode.name + (c.stiffness < 1.0 ? "_soft" : "_stiff") +
                                   (c.level < 0 ? std::string("_finest") : "_level_" + std::to_string(c.level));
                          });
 
