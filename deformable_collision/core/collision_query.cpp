@@ -150,7 +150,7 @@ struct ClosestPair {
 /// Adds the contact of the leaves at `leaf_a` and `leaf_b` in the trees' leaf orders if a
 /// point pair is closer than the contact distance, at their closest pair. Both leaves must
 /// be current.
-template <bool Wide>
+template <VectorWidth Width>
 [[gnu::always_inline]] inline void closestLeafPair(const SphereTree& a, std::uint32_t leaf_a,
                                                    const SphereTree& b, std::uint32_t leaf_b,
                                                    double contact_distance_m, ContactSink& contacts,
@@ -160,8 +160,18 @@ template <bool Wide>
   const LeafPoints points_b = leafPoints(b, leaf_b);
   ClosestPair pair{contact_distance_m * contact_distance_m, points_a.count, 0};
 #if defined(__GNUC__) && defined(__x86_64__)
-  if constexpr (Wide) {
+  if constexpr (Width == VectorWidth::kAvx512) {
     if (!closestPairAllAtOnce(points_a, points_b, pair, counters)) return;
+  } else if (Width == VectorWidth::kAvx2 && points_b.count <= 8) {
+    const LeafSpheres& spheres_b = b.leafSpheres();
+    if (!closestPairNearSphereAvx2(points_a.x, points_a.y, points_a.z, points_a.count, points_b.x,
+                                   points_b.y, points_b.z, points_b.count, spheres_b.x[leaf_b],
+                                   spheres_b.y[leaf_b], spheres_b.z[leaf_b],
+                                   spheres_b.radius[leaf_b] + contact_distance_m,
+                                   pair.squared_distance, pair.squared_distance, pair.offset_a,
+                                   pair.offset_b, counters.point_tests)) {
+      return;
+    }
   } else
 #endif
   {
@@ -180,7 +190,7 @@ static_assert(kBucketLeaves * kBucketLeaves <= 64, "a bucket pair's leaf pairs a
 
 /// The leaf contacts of two nodes of at most kBucketLeaves leaves each, every leaf sphere
 /// of one against every leaf sphere of the other. Both nodes' leaves must be current.
-template <bool Wide>
+template <VectorWidth Width>
 [[gnu::always_inline]] inline void collideBuckets(const SphereTree& a, const NodeState& bucket_a,
                                                   const SphereTree& b, const NodeState& bucket_b,
                                                   double contact_distance_m,
@@ -195,7 +205,7 @@ template <bool Wide>
   // all rather than one per leaf of a, whose ends a branch predictor cannot foresee.
   std::uint64_t within_reach = 0;
   for (std::uint32_t k = 0; k < bucket_a.leaf_count; ++k) {
-    within_reach |= static_cast<std::uint64_t>(reachMask<Wide>(
+    within_reach |= static_cast<std::uint64_t>(reachMask<Width>(
                         spheres_a.x[first_a + k], spheres_a.y[first_a + k], spheres_a.z[first_a + k],
                         spheres_a.radius[first_a + k] + contact_distance_m, &spheres_b.x[first_b],
                         &spheres_b.y[first_b], &spheres_b.z[first_b], &spheres_b.radius[first_b],
@@ -205,24 +215,33 @@ template <bool Wide>
   while (within_reach != 0) {
     const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(within_reach));
     within_reach &= within_reach - 1;
-    closestLeafPair<Wide>(a, first_a + (bit >> 3), b, first_b + (bit & 7), contact_distance_m,
+    closestLeafPair<Width>(a, first_a + (bit >> 3), b, first_b + (bit & 7), contact_distance_m,
                           contacts, counters);
   }
 }
 
-/// collideBuckets compiled for the wide vectors, its kernels inlined into it; and without.
+/// collideBuckets compiled for each vector width, its kernels inlined into it.
 #if defined(__GNUC__) && defined(__x86_64__)
-__attribute__((target("avx512f"), flatten)) void collideBucketsWide(
+__attribute__((target("avx512f"), flatten)) void collideBucketsAvx512(
     const SphereTree& a, const NodeState& bucket_a, const SphereTree& b, const NodeState& bucket_b,
     double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
-  collideBuckets<true>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+  collideBuckets<VectorWidth::kAvx512>(a, bucket_a, b, bucket_b, contact_distance_m, contacts,
+                                       counters);
+}
+
+__attribute__((target("avx2"), flatten)) void collideBucketsAvx2(
+    const SphereTree& a, const NodeState& bucket_a, const SphereTree& b, const NodeState& bucket_b,
+    double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
+  collideBuckets<VectorWidth::kAvx2>(a, bucket_a, b, bucket_b, contact_distance_m, contacts,
+                                     counters);
 }
 #endif
 
 void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, const SphereTree& b,
                             const NodeState& bucket_b, double contact_distance_m,
                             ContactSink& contacts, QueryCounters& counters) {
-  collideBuckets<false>(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+  collideBuckets<VectorWidth::kPortable>(a, bucket_a, b, bucket_b, contact_distance_m, contacts,
+                                         counters);
 }
 
 /// The leaf contacts of two sets of at most kBucketLeaves buckets each, every bucket of one
@@ -230,7 +249,7 @@ void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, cons
 /// most kBucketLeaves buckets) rather than pair by pair down the levels above them. A small
 /// object in reach of another has most of its buckets in reach too (a pile), and costs at
 /// most kBucketLeaves buckets however its contacts lie.
-template <bool Wide>
+template <VectorWidth Width>
 [[gnu::always_inline]] inline void collideBucketSets(SphereTree& a, const std::uint32_t* buckets_a,
                                                      std::uint32_t count_a, SphereTree& b,
                                                      const std::uint32_t* buckets_b,
@@ -251,24 +270,32 @@ template <bool Wide>
     const NodeState& bucket_a = a.current(buckets_a[k], kBucketLeaves);
     const Sphere& sphere = bucket_a.sphere;
     std::uint32_t within_reach =
-        reachMask<Wide>(sphere.center.x(), sphere.center.y(), sphere.center.z(),
+        reachMask<Width>(sphere.center.x(), sphere.center.y(), sphere.center.z(),
                         sphere.radius + contact_distance_m, x, y, z, radius, count_b);
     while (within_reach != 0) {
       const auto j = static_cast<std::uint32_t>(__builtin_ctz(within_reach));
       within_reach &= within_reach - 1;
-      collideBuckets<Wide>(a, bucket_a, b, b.current(buckets_b[j], kBucketLeaves),
+      collideBuckets<Width>(a, bucket_a, b, b.current(buckets_b[j], kBucketLeaves),
                            contact_distance_m, contacts, counters);
     }
   }
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
-__attribute__((target("avx512f"), flatten)) void collideBucketSetsWide(
+__attribute__((target("avx512f"), flatten)) void collideBucketSetsAvx512(
     SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a, SphereTree& b,
     const std::uint32_t* buckets_b, std::uint32_t count_b, double contact_distance_m,
     ContactSink& contacts, QueryCounters& counters) {
-  collideBucketSets<true>(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                          contacts, counters);
+  collideBucketSets<VectorWidth::kAvx512>(a, buckets_a, count_a, b, buckets_b, count_b,
+                                          contact_distance_m, contacts, counters);
+}
+
+__attribute__((target("avx2"), flatten)) void collideBucketSetsAvx2(
+    SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a, SphereTree& b,
+    const std::uint32_t* buckets_b, std::uint32_t count_b, double contact_distance_m,
+    ContactSink& contacts, QueryCounters& counters) {
+  collideBucketSets<VectorWidth::kAvx2>(a, buckets_a, count_a, b, buckets_b, count_b,
+                                        contact_distance_m, contacts, counters);
 }
 #endif
 
@@ -277,8 +304,8 @@ void collideBucketSetsPortable(SphereTree& a, const std::uint32_t* buckets_a,
                                const std::uint32_t* buckets_b, std::uint32_t count_b,
                                double contact_distance_m, ContactSink& contacts,
                                QueryCounters& counters) {
-  collideBucketSets<false>(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                           contacts, counters);
+  collideBucketSets<VectorWidth::kPortable>(a, buckets_a, count_a, b, buckets_b, count_b,
+                                            contact_distance_m, contacts, counters);
 }
 
 /// Whether two spheres come closer than the contact distance.
@@ -307,7 +334,7 @@ struct HierarchyQuery::Descent {
   double contact_distance_m;
   ContactSink& contacts;
   QueryCounters& counters;
-  bool wide_vectors;
+  VectorWidth vectors;
   bool to_leaves;
   /// Towards the leaves, a node of kBucketLeaves leaves or fewer is measured with its
   /// leaves: its leaves are tested whenever it comes within reach of another.
@@ -327,8 +354,13 @@ struct HierarchyQuery::Descent {
                                                        const std::uint32_t* buckets_b,
                                                        std::uint32_t count_b) const {
 #if defined(__GNUC__) && defined(__x86_64__)
-    if (wide_vectors) {
-      collideBucketSetsWide(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+    if (vectors == VectorWidth::kAvx512) {
+      collideBucketSetsAvx512(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
+                              contacts, counters);
+      return;
+    }
+    if (vectors == VectorWidth::kAvx2) {
+      collideBucketSetsAvx2(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
                             contacts, counters);
       return;
     }
@@ -340,8 +372,12 @@ struct HierarchyQuery::Descent {
   [[gnu::always_inline]] void leafContactsOfBuckets(const NodeState& bucket_a,
                                                     const NodeState& bucket_b) const {
 #if defined(__GNUC__) && defined(__x86_64__)
-    if (wide_vectors) {
-      collideBucketsWide(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+    if (vectors == VectorWidth::kAvx512) {
+      collideBucketsAvx512(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+      return;
+    }
+    if (vectors == VectorWidth::kAvx2) {
+      collideBucketsAvx2(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
       return;
     }
 #endif
@@ -442,8 +478,8 @@ struct HierarchyQuery::Descent {
   }
 };
 
-HierarchyQuery::HierarchyQuery(bool use_wide_vectors)
-    : wide_vectors_(use_wide_vectors && wideVectorsAvailable()) {}
+HierarchyQuery::HierarchyQuery(VectorWidth vectors)
+    : vectors_(std::min(vectors, widestVectors())) {}
 
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              std::vector<SphereContact>& contacts, QueryCounters& counters) {
@@ -458,7 +494,7 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
                              ContactSink& contacts, QueryCounters& counters) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
-  const Descent descent{a, b, level, contact_distance_m, contacts, counters, wide_vectors_,
+  const Descent descent{a, b, level, contact_distance_m, contacts, counters, vectors_,
                         to_leaves, to_leaves ? kBucketLeaves : 0,
                         to_leaves && a.buckets().size() <= kBucketLeaves,
                         to_leaves && b.buckets().size() <= kBucketLeaves};

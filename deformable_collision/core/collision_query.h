@@ -56,9 +56,9 @@ struct QueryCounters {
 /// Holds its traversal stack so that repeated queries allocate nothing.
 class HierarchyQuery {
  public:
-  /// Uses the wide vectors if asked and available: they test eight leaves or points at
-  /// once and find the same contacts, bit for bit.
-  explicit HierarchyQuery(bool use_wide_vectors = wideVectorsAvailable());
+  /// Tests leaves and points with vectors of up to `vectors` (the CPU's widest if it has
+  /// not those): four or eight at once, finding the same contacts, bit for bit.
+  explicit HierarchyQuery(VectorWidth vectors = widestVectors());
 
   /// Appends to `contacts` the node pairs of trees `a` and `b` at `level` (0: the roots;
   /// a node that is a leaf above `level` stands for itself) whose spheres come closer
@@ -89,7 +89,7 @@ class HierarchyQuery {
   /// One query's state and the steps of its descent (collision_query.cpp).
   struct Descent;
 
-  bool wide_vectors_ = false;
+  VectorWidth vectors_ = VectorWidth::kPortable;
   std::vector<PendingPair> stack_;
 };
 

@@ -1,7 +1,7 @@
 #pragma once
 
 // Internal to the core, included by collision_query.cpp only: the point kernels of the
-// query, portable and AVX-512, on points given by coordinate arrays. They keep internal
+// query, portable, AVX2 and AVX-512, on points given by coordinate arrays. They keep internal
 // linkage, so the compiler inlines them into the query as if they stood in its file.
 
 #include <cstdint>
@@ -12,6 +12,7 @@
 #endif
 
 #include "deformable_collision/core/wide_kernels.h"
+#include "deformable_collision/core/wide_vectors.h"
 
 namespace deformable_collision {
 namespace {
@@ -160,18 +161,131 @@ __attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(
   return _mm512_mask_cmp_pd_mask(lanes, squared, _mm512_mul_pd(reach, reach), _CMP_LT_OQ);
 }
 
+/// The lanes of the up to four values from `offset` on of `count`, as a mask of whole lanes.
+__attribute__((target("avx2"))) inline __m256i lanesFromAvx2(std::uint32_t offset,
+                                                            std::uint32_t count) {
+  const __m256i lane = _mm256_add_epi64(_mm256_set1_epi64x(offset), _mm256_set_epi64x(3, 2, 1, 0));
+  return _mm256_cmpgt_epi64(_mm256_set1_epi64x(count), lane);
+}
+
+/// Squared distances from the point (x, y, z), in every lane, to four points given by their
+/// coordinates, summed as the scalar code sums them, so both give the same bits.
+__attribute__((target("avx2"))) inline __m256d squaredDistancesAvx2(__m256d x, __m256d y, __m256d z,
+                                                                   __m256d xs, __m256d ys,
+                                                                   __m256d zs) {
+  const __m256d dx = _mm256_sub_pd(x, xs);
+  const __m256d dy = _mm256_sub_pd(y, ys);
+  const __m256d dz = _mm256_sub_pd(z, zs);
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+}
+
+/// The least of the four values.
+__attribute__((target("avx2"))) inline double leastOfAvx2(__m256d values) {
+  const __m128d halves = _mm_min_pd(_mm256_castpd256_pd128(values), _mm256_extractf128_pd(values, 1));
+  return _mm_cvtsd_f64(_mm_min_sd(halves, _mm_unpackhi_pd(halves, halves)));
+}
+
+/// The closest pair of a's points and up to eight points of b if it is below
+/// `below_squared`, the first in row-major order, testing only the points of a within
+/// `reach_m` of b's centre (b's radius plus the contact distance): the others cannot come
+/// close enough to any point of b, and most leaf pairs in reach have few such points.
+/// Four of a's points per instruction against the centre, then four of b's per instruction
+/// against each point of a that passes; `point_tests` counts as closestPairNearSphere does.
+__attribute__((target("avx2"))) inline bool closestPairNearSphereAvx2(
+    const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
+    const double* by, const double* bz, std::uint32_t count_b, double center_x, double center_y,
+    double center_z, double reach_m, double below_squared, double& nearest_squared,
+    std::uint32_t& offset_a, std::uint32_t& offset_b, std::size_t& point_tests) {
+  // Lanes past b's points hold an infinite x, so their distances are infinite, never least.
+  const __m256d infinity = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  __m256d x[2], y[2], z[2];
+#pragma GCC unroll 2
+  for (int h = 0; h < 2; ++h) {
+    const __m256i lanes = lanesFromAvx2(4 * h, count_b);
+    x[h] = _mm256_blendv_pd(infinity, _mm256_maskload_pd(bx + 4 * h, lanes),
+                            _mm256_castsi256_pd(lanes));
+    y[h] = _mm256_maskload_pd(by + 4 * h, lanes);
+    z[h] = _mm256_maskload_pd(bz + 4 * h, lanes);
+  }
+  const __m256d cx = _mm256_set1_pd(center_x);
+  const __m256d cy = _mm256_set1_pd(center_y);
+  const __m256d cz = _mm256_set1_pd(center_z);
+  const __m256d reach_squared = _mm256_set1_pd(reach_m * reach_m);
+  point_tests += count_a;
+  bool found = false;
+  for (std::uint32_t first = 0; first < count_a; first += 4) {
+    const __m256i lanes = lanesFromAvx2(first, count_a);
+    const __m256d from_center = squaredDistancesAvx2(
+        cx, cy, cz, _mm256_maskload_pd(ax + first, lanes), _mm256_maskload_pd(ay + first, lanes),
+        _mm256_maskload_pd(az + first, lanes));
+    auto near_center = static_cast<std::uint32_t>(_mm256_movemask_pd(_mm256_and_pd(
+        _mm256_cmp_pd(from_center, reach_squared, _CMP_LT_OQ), _mm256_castsi256_pd(lanes))));
+    // In order of a's points, and only a strictly closer pair replaces the one found: the
+    // first pair in row-major order at the least distance.
+    while (near_center != 0) {
+      const std::uint32_t s = first + static_cast<std::uint32_t>(__builtin_ctz(near_center));
+      near_center &= near_center - 1;
+      point_tests += count_b;
+      const __m256d px = _mm256_broadcast_sd(ax + s);
+      const __m256d py = _mm256_broadcast_sd(ay + s);
+      const __m256d pz = _mm256_broadcast_sd(az + s);
+      const __m256d low = squaredDistancesAvx2(px, py, pz, x[0], y[0], z[0]);
+      const __m256d high = squaredDistancesAvx2(px, py, pz, x[1], y[1], z[1]);
+      const double least = leastOfAvx2(_mm256_min_pd(low, high));
+      if (!(least < below_squared)) continue;
+      const __m256d target = _mm256_set1_pd(least);
+      const auto at_least = static_cast<std::uint32_t>(
+          _mm256_movemask_pd(_mm256_cmp_pd(low, target, _CMP_EQ_OQ)) |
+          _mm256_movemask_pd(_mm256_cmp_pd(high, target, _CMP_EQ_OQ)) << 4);
+      below_squared = least;
+      nearest_squared = least;
+      offset_a = s;
+      offset_b = static_cast<std::uint32_t>(__builtin_ctz(at_least));
+      found = true;
+    }
+  }
+  return found;
+}
+
+/// reachMask, four spheres per instruction.
+__attribute__((target("avx2"))) inline std::uint32_t reachMaskAvx2(
+    double x, double y, double z, double reach_m, const double* xs, const double* ys,
+    const double* zs, const double* radii, std::uint32_t count) {
+  const __m256d px = _mm256_set1_pd(x);
+  const __m256d py = _mm256_set1_pd(y);
+  const __m256d pz = _mm256_set1_pd(z);
+  std::uint32_t mask = 0;
+#pragma GCC unroll 2
+  for (std::uint32_t j = 0; j < count; j += 4) {
+    const __m256i lanes = lanesFromAvx2(j, count);
+    const __m256d squared = squaredDistancesAvx2(px, py, pz, _mm256_maskload_pd(xs + j, lanes),
+                                                 _mm256_maskload_pd(ys + j, lanes),
+                                                 _mm256_maskload_pd(zs + j, lanes));
+    const __m256d reach = _mm256_add_pd(_mm256_maskload_pd(radii + j, lanes), _mm256_set1_pd(reach_m));
+    const __m256d within = _mm256_and_pd(_mm256_cmp_pd(squared, _mm256_mul_pd(reach, reach), _CMP_LT_OQ),
+                                         _mm256_castsi256_pd(lanes));
+    mask |= static_cast<std::uint32_t>(_mm256_movemask_pd(within)) << j;
+  }
+  return mask;
+}
+
 DEFORMABLE_COLLISION_END_WIDE_KERNELS
 #endif
 
 /// Bit j set if sphere j of the `count` (<= 8) given by coordinate arrays comes within
 /// `reach_m` plus its radius of (x, y, z).
-template <bool Wide>
+template <VectorWidth Width>
 [[gnu::always_inline]] inline std::uint32_t reachMask(double x, double y, double z, double reach_m,
                                                       const double* xs, const double* ys,
                                                       const double* zs, const double* radii,
                                                       std::uint32_t count) {
 #if defined(__GNUC__) && defined(__x86_64__)
-  if constexpr (Wide) return reachMaskAvx512(x, y, z, reach_m, xs, ys, zs, radii, count);
+  if constexpr (Width == VectorWidth::kAvx512) {
+    return reachMaskAvx512(x, y, z, reach_m, xs, ys, zs, radii, count);
+  }
+  if constexpr (Width == VectorWidth::kAvx2) {
+    return reachMaskAvx2(x, y, z, reach_m, xs, ys, zs, radii, count);
+  }
 #endif
   std::uint32_t mask = 0;
   for (std::uint32_t j = 0; j < count; ++j) {

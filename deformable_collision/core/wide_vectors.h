@@ -15,4 +15,19 @@ inline bool wideVectorsAvailable() {
 #endif
 }
 
+/// The widest vectors this CPU gives the collision query's kernels: eight lanes
+/// (AVX-512F), four (AVX2), or none (portable code). Every width finds the same bits.
+enum class VectorWidth { kPortable, kAvx2, kAvx512 };
+
+inline VectorWidth widestVectors() {
+#if defined(__GNUC__) && defined(__x86_64__)
+  static const VectorWidth widest = wideVectorsAvailable()             ? VectorWidth::kAvx512
+                                    : __builtin_cpu_supports("avx2") ? VectorWidth::kAvx2
+                                                                     : VectorWidth::kPortable;
+  return widest;
+#else
+  return VectorWidth::kPortable;
+#endif
+}
+
 }  // namespace deformable_collision

@@ -54,6 +54,10 @@ struct TwoBodies {
 
 constexpr double kSparseContact = 0.06;
 
+/// Each width a query may be asked for; a CPU without it gives the next narrower.
+constexpr VectorWidth kVectorWidths[] = {VectorWidth::kPortable, VectorWidth::kAvx2,
+                                         VectorWidth::kAvx512};
+
 TwoBodies randomScene(std::uint64_t seed, std::size_t points_a = 700, std::size_t points_b = 600) {
   std::mt19937_64 engine(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -95,8 +99,8 @@ TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
     std::vector<SphereContact> contacts;
     QueryCounters counters;
     // A second cycle after the bodies moved on: nothing of the first cycle's points may
-    // stay in the trees (the leaves' gathered positions are per cycle). Each cycle is
-    // queried without and, where the CPU has them, with wide vectors.
+    // stay in the trees (the leaves' gathered positions are per cycle). The cycles are
+    // queried with each vector width in turn, as far as the CPU has them.
     for (int cycle = 0; cycle < 4; ++cycle) {
       if (cycle == 2) {
         for (ShapeMatchingBody* body : {&scene.a, &scene.b}) {
@@ -107,7 +111,7 @@ TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
       ta.beginCycle(GetParam());
       tb.beginCycle(GetParam());
       contacts.clear();
-      HierarchyQuery query(cycle % 2 == 1);
+      HierarchyQuery query(kVectorWidths[cycle % 3]);
       query.collide(ta, tb, std::max(ta.maxLevel(), tb.maxLevel()), contact_distance, contacts,
                     counters);
 
@@ -143,10 +147,12 @@ INSTANTIATE_TEST_SUITE_P(Methods, NoMissedContactTest,
                            }
                          });
 
-// The wide-vector leaf tests (eight leaves or points per instruction) find the same
+class VectorWidthTest : public ::testing::TestWithParam<VectorWidth> {};
+
+// The vector leaf tests (four or eight leaves or points per instruction) find the same
 // contacts as the portable ones, bit for bit, for leaves of up to eight points and larger.
-TEST(WideVectors, FindTheSameContactsBitForBit) {
-  if (!wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
+TEST_P(VectorWidthTest, FindsTheSameContactsBitForBit) {
+  if (widestVectors() < GetParam()) GTEST_SKIP() << "this CPU has not these vectors";
   for (const auto& [config_a, config_b] :
        {std::pair<SphereTreeConfig, SphereTreeConfig>{{2, 8}, {2, 5}}, {{2, 20}, {3, 13}}}) {
     for (std::uint64_t seed = 0; seed < 11; ++seed) {
@@ -158,8 +164,9 @@ TEST(WideVectors, FindTheSameContactsBitForBit) {
       std::vector<SphereContact> wide;
       QueryCounters counters;
       const int leaves = std::max(ta.maxLevel(), tb.maxLevel());
-      HierarchyQuery(false).collide(ta, tb, leaves, contact_distance, portable, counters);
-      HierarchyQuery(true).collide(ta, tb, leaves, contact_distance, wide, counters);
+      HierarchyQuery(VectorWidth::kPortable).collide(ta, tb, leaves, contact_distance, portable,
+                                                     counters);
+      HierarchyQuery(GetParam()).collide(ta, tb, leaves, contact_distance, wide, counters);
       ASSERT_FALSE(portable.empty()) << "seed " << seed;
       ASSERT_EQ(wide.size(), portable.size()) << "seed " << seed;
       for (std::size_t k = 0; k < wide.size(); ++k) {
@@ -174,6 +181,12 @@ TEST(WideVectors, FindTheSameContactsBitForBit) {
     }
   }
 }
+
+INSTANTIATE_TEST_SUITE_P(Widths, VectorWidthTest,
+                         ::testing::Values(VectorWidth::kAvx2, VectorWidth::kAvx512),
+                         [](const auto& info) {
+                           return std::string(info.param == VectorWidth::kAvx2 ? "avx2" : "avx512");
+                         });
 
 TEST(LevelOfDetail, EveryLevelCoversTheClosePointPairs) {
   const double contact_distance = 0.02;
