@@ -7,6 +7,7 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include "deformable_collision/core/scene_object.h"
 
@@ -196,7 +197,8 @@ void Scene::cycle() {
   if (level_budget_) {
     stats_.level_auto = true;
     stats_.cycle_budget_ms = level_budget_->budgetMs();
-    level_budget_->record(stats_.detection_ms + stats_.response_ms);
+    level_budget_->record(cycle_cost_source_ ? cycle_cost_source_(stats_)
+                                             : stats_.detection_ms + stats_.response_ms);
   }
 }
 
@@ -231,6 +233,10 @@ void Scene::setCycleBudget(std::optional<double> budget_ms) {
     level_budget_.emplace(*budget_ms, maxLevel());
   }
   config_.cycle_budget_ms = budget_ms;
+}
+
+void Scene::setCycleCostSource(CycleCostSource source) {
+  cycle_cost_source_ = std::move(source);
 }
 
 void Scene::setTimeStep(double dt_s) {

@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -80,6 +81,9 @@ struct CycleStats {
   std::size_t points_displaced = 0;
 };
 
+/// What a cycle cost (ms), as the cycle budget counts it, from the cycle's figures.
+using CycleCostSource = std::function<double(const CycleStats& cycle)>;
+
 /// Objects, their hierarchies and one simulation cycle (paper section 6): shape matching,
 /// a sweep-and-prune broad phase over the objects' root spheres, the hierarchy query at the
 /// selected level, and the level-of-detail response. The response separates each pair of
@@ -141,6 +145,13 @@ class Scene {
   void setCycleBudget(std::optional<double> budget_ms);
   /// The budget in force; std::nullopt when the level is fixed.
   std::optional<double> cycleBudget() const { return config_.cycle_budget_ms; }
+  /// What the cycle budget takes as each cycle's cost. By default (and with an empty
+  /// function) the cycle's measured detection + response time, whose noise makes the levels
+  /// picked differ from run to run; a given source (a cost per level, say) makes them
+  /// reproducible, as tests need. stats() keeps the measured times either way, and the source
+  /// stays set when budget mode is left or entered. cycle() throws std::invalid_argument,
+  /// after the cycle, if the source gives a negative or non-finite cost.
+  void setCycleCostSource(CycleCostSource source);
   /// Changes the step of the next cycles (a node whose clouds' stamps time its cycles).
   /// @throw std::invalid_argument unless dt_s is in (0, 0.1].
   void setTimeStep(double dt_s);
@@ -274,6 +285,7 @@ class Scene {
   std::vector<std::uint32_t> pair_offsets_;
   HierarchyQuery query_;
   std::optional<LevelBudget> level_budget_;  ///< Set in budget mode.
+  CycleCostSource cycle_cost_source_;         ///< Empty: the measured time.
   std::vector<SceneContact> contacts_;
   std::vector<ContactPush> pushes_;
   std::vector<std::uint32_t> support_queue_;
