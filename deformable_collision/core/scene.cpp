@@ -172,7 +172,9 @@ void Scene::cycle() {
 
   refreshStaleTrees();
   // Objects that came since the last cycle may have added levels.
-  if (level_budget_) level_budget_->setMaxLevel(maxLevel());
+  const int max_level = maxLevel();
+  if (level_budget_) level_budget_->setMaxLevel(max_level);
+  detection_costs_.setMaxLevel(max_level);
   stats_.level = level();
   contacts_.clear();
   contact_runs_.clear();
@@ -194,6 +196,7 @@ void Scene::cycle() {
   stats_.node_pairs_tested = query_counters_.node_pairs_tested;
   stats_.point_tests = query_counters_.point_tests;
   stats_.contacts = contacts_.size();
+  detection_costs_.record(stats_.level, stats_.detection_ms);
   if (level_budget_) {
     stats_.level_auto = true;
     stats_.cycle_budget_ms = level_budget_->budgetMs();

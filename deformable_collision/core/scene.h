@@ -12,6 +12,7 @@
 #include "deformable_collision/core/collision_query.h"
 #include "deformable_collision/core/enum_names.h"
 #include "deformable_collision/core/level_budget.h"
+#include "deformable_collision/core/level_costs.h"
 #include "deformable_collision/core/shape_matching.h"
 #include "deformable_collision/core/sphere_tree.h"
 
@@ -160,6 +161,10 @@ class Scene {
   int level() const;
   /// The finest level over all objects (the leaves).
   int maxLevel() const;
+  /// Per level, the detection time (stats().detection_ms) of the cycles run there, over all
+  /// object pairs: what a contact query at that level is expected to cost at most, since it
+  /// tests those pairs or fewer, on spheres that the cycle may have updated already.
+  const LevelCosts& detectionCosts() const { return detection_costs_; }
 
   /// Contacts at `level` on the current state, for objects a and b (std::nullopt: any).
   /// The running level and the contacts of the last cycle are left alone. Like cycle(), it
@@ -286,6 +291,7 @@ class Scene {
   HierarchyQuery query_;
   std::optional<LevelBudget> level_budget_;  ///< Set in budget mode.
   CycleCostSource cycle_cost_source_;         ///< Empty: the measured time.
+  LevelCosts detection_costs_;
   std::vector<SceneContact> contacts_;
   std::vector<ContactPush> pushes_;
   std::vector<std::uint32_t> support_queue_;
