@@ -1,5 +1,6 @@
 #include "deformable_collision/ros/contact_service.h"
 
+#include <cmath>
 #include <sstream>
 #include <string>
 
@@ -39,6 +40,27 @@ std::string levelOutOfRange(int level, int max_level) {
          "] (" + std::to_string(max_level) + ": the leaves; -1: the finest; -2: the running one)";
 }
 
+/// What the level taken for a budget means, after "N contacts at level L".
+std::string budgetNote(const LevelCosts::LevelForBudget& pick, double budget_ms) {
+  std::ostringstream note;
+  switch (pick.basis) {
+    case LevelCosts::Basis::kWithinBudget:
+      note << ", the finest expected within " << budget_ms << " ms of detection ("
+           << *pick.estimate_ms << " ms)";
+      break;
+    case LevelCosts::Basis::kCheapest:
+      note << ": no level is expected within " << budget_ms
+           << " ms of detection; this one is the cheapest measured (" << *pick.estimate_ms
+           << " ms)";
+      break;
+    case LevelCosts::Basis::kNoneMeasured:
+      note << ": no level's detection has been measured yet (no cycle has run), so the "
+              "coarsest";
+      break;
+  }
+  return note.str();
+}
+
 }  // namespace
 
 void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response,
@@ -73,7 +95,8 @@ void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Re
   response.level = static_cast<std::uint8_t>(scene.level());
 }
 
-void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
+void answerGetContacts(Scene& scene, const LevelCosts& detection_costs,
+                       const std::vector<NamedObject>& objects,
                        const GetContacts::Request& request, std::vector<SceneContact>& scratch,
                        GetContacts::Response& response) {
   response.success = false;
@@ -84,9 +107,22 @@ void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
       !resolveObject(objects, request.object_b, b, b_has_shape, response.message)) {
     return;
   }
+  if (!(request.budget_ms >= 0.0) || !std::isfinite(request.budget_ms)) {
+    std::ostringstream problem;
+    problem << "budget_ms = " << request.budget_ms
+            << " must be finite and >= 0 (0: no budget, the level asked for)";
+    response.message = problem.str();
+    return;
+  }
   const int max_level = scene.maxLevel();
   int level = request.level;
-  if (level == GetContacts::Request::RUNNING) {
+  std::string budget_note;
+  if (request.budget_ms > 0.0) {
+    const LevelCosts::LevelForBudget pick =
+        detection_costs.levelWithin(request.budget_ms, max_level);
+    level = pick.level;
+    budget_note = budgetNote(pick, request.budget_ms);
+  } else if (level == GetContacts::Request::RUNNING) {
     level = scene.level();
   } else if (level == GetContacts::Request::FINEST) {
     level = max_level;
@@ -104,7 +140,8 @@ void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
   }
   scene.contactsAt(level, a, b, scratch);
   fillContactArray(scene, scratch, level, response.contacts);
-  response.message = std::to_string(scratch.size()) + " contacts at level " + std::to_string(level);
+  response.message =
+      std::to_string(scratch.size()) + " contacts at level " + std::to_string(level) + budget_note;
 }
 
 void fillContactArray(const Scene& scene, const std::vector<SceneContact>& contacts, int level,

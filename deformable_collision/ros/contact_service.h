@@ -8,6 +8,7 @@
 #include "deformable_collision/ContactArray.h"
 #include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
+#include "deformable_collision/core/level_costs.h"
 #include "deformable_collision/core/scene.h"
 
 namespace deformable_collision {
@@ -33,11 +34,14 @@ constexpr int kAutoLevel = -3;
 void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Response& response,
                     std::optional<double> cycle_budget_ms = std::nullopt);
 
-/// Contacts of the named objects (empty name: any) at the requested level (FINEST, -1: the
-/// leaves; RUNNING, -2: the running one) on the current state; the running level is left
-/// alone. `scratch` holds the contacts
-/// between calls so that repeated queries reuse its memory. The caller sets the header.
-void answerGetContacts(Scene& scene, const std::vector<NamedObject>& objects,
+/// Contacts of the named objects (empty name: any) on the current state, at the requested
+/// level (FINEST, -1: the leaves; RUNNING, -2: the running one) or, with `budget_ms` > 0, at
+/// the level `detection_costs` expect within it (LevelCosts::levelWithin; the message says
+/// how it was taken); the running level is left alone. `detection_costs` are the scene's
+/// (Scene::detectionCosts), or given ones in tests. `scratch` holds the contacts between
+/// calls so that repeated queries reuse its memory. The caller sets the header.
+void answerGetContacts(Scene& scene, const LevelCosts& detection_costs,
+                       const std::vector<NamedObject>& objects,
                        const GetContacts::Request& request, std::vector<SceneContact>& scratch,
                        GetContacts::Response& response);
 

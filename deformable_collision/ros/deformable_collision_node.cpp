@@ -421,7 +421,8 @@ bool DeformableCollisionNode::onSetLevel(SetLevel::Request& request, SetLevel::R
 bool DeformableCollisionNode::onGetContacts(GetContacts::Request& request,
                                             GetContacts::Response& response) {
   for (std::size_t i = 0; i < slots_.size(); ++i) named_objects_[i].scene_index = slots_[i].index;
-  answerGetContacts(scene_, named_objects_, request, query_contacts_, response);
+  answerGetContacts(scene_, scene_.detectionCosts(), named_objects_, request, query_contacts_,
+                    response);
   response.contacts.header.stamp = ros::Time::now();
   response.contacts.header.frame_id = config_.fixed_frame;
   return true;

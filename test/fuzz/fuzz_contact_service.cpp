@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <string>
 
 #include "deformable_collision/scenes/demo_scenes.h"
@@ -13,6 +14,9 @@
 namespace {
 
 using namespace deformable_collision;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 struct Fixture {
   std::unique_ptr<Scene> scene;
@@ -70,6 +74,19 @@ std::int16_t requestedLevel(FuzzedDataProvider& input) {
                              : input.ConsumeIntegral<std::int16_t>();
 }
 
+/// No budget (0) half the time; else one in [0, 10] ms, an edge or any double.
+double requestedBudget(FuzzedDataProvider& input) {
+  if (!input.ConsumeBool()) return 0.0;
+  switch (input.ConsumeIntegralInRange(0, 2)) {
+    case 0:
+      return input.ConsumeFloatingPointInRange(0.0, 10.0);
+    case 1:
+      return input.PickValueInArray({kNaN, kInf, -kInf, -0.0, -1.0, 1e-300});
+    default:
+      return input.ConsumeFloatingPoint<double>();
+  }
+}
+
 /// The level a request names on `scene` (FINEST, RUNNING or itself); -3 if out of range.
 int namedLevel(const Scene& scene, int requested) {
   if (requested == GetContacts::Request::RUNNING) return scene.level();
@@ -98,11 +115,18 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
   request.object_a = objectName(input, f);
   request.object_b = objectName(input, f);
   request.level = requestedLevel(input);
+  // Drawn after the level: the kept regression input ends before it, and an exhausted input
+  // draws 0 (no budget), so it still asks what it asked before budget_ms came.
+  request.budget_ms = requestedBudget(input);
+  const bool budget_valid = request.budget_ms >= 0.0 && std::isfinite(request.budget_ms);
   const int running = f.scene->level();
-  const int level = namedLevel(*f.scene, request.level);
+  const int level =
+      budget_valid && request.budget_ms > 0.0
+          ? f.scene->detectionCosts().levelWithin(request.budget_ms, f.scene->maxLevel()).level
+          : namedLevel(*f.scene, request.level);
   GetContacts::Response response;
-  answerGetContacts(*f.scene, f.objects, request, f.scratch, response);
-  const bool valid = known(f, request.object_a) && known(f, request.object_b) &&
+  answerGetContacts(*f.scene, f.scene->detectionCosts(), f.objects, request, f.scratch, response);
+  const bool valid = known(f, request.object_a) && known(f, request.object_b) && budget_valid &&
                      level >= 0;
   check(response.success == valid, "get_contacts accepted wrongly");
   check(f.scene->level() == running, "get_contacts changed the running level");

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "deformable_collision/scenes/demo_scenes.h"
@@ -28,17 +30,21 @@ class ContactServiceTest : public ::testing::Test {
     ASSERT_FALSE(scene_->contacts().empty());
   }
 
-  GetContacts::Response ask(const std::string& a, const std::string& b, int level) {
+  /// The answer with `detection_costs_` as what the node measured.
+  GetContacts::Response ask(const std::string& a, const std::string& b, int level,
+                            double budget_ms = 0.0) {
     GetContacts::Request request;
     request.object_a = a;
     request.object_b = b;
     request.level = static_cast<std::int16_t>(level);
+    request.budget_ms = budget_ms;
     GetContacts::Response response;
-    answerGetContacts(*scene_, objects_, request, scratch_, response);
+    answerGetContacts(*scene_, detection_costs_, objects_, request, scratch_, response);
     return response;
   }
 
   std::unique_ptr<Scene> scene_;
+  LevelCosts detection_costs_;
   std::vector<NamedObject> objects_;
   std::vector<SceneContact> scratch_;
 };
@@ -204,26 +210,91 @@ TEST_F(ContactServiceTest, GetContactsOfOneObjectAtAnotherLevelLeavesTheRunningL
 
 TEST_F(ContactServiceTest, GetContactsRefusesBadRequestsSayingWhy) {
   const int max_level = scene_->maxLevel();
+  const double kNaN = std::numeric_limits<double>::quiet_NaN();
+  const double kInf = std::numeric_limits<double>::infinity();
   struct Case {
     const char* name;
     std::string a, b;
     int level;
+    double budget_ms;
     const char* says;
   };
   const Case cases[] = {
-      {"unknown a", "plum", "", -1, "unknown object 'plum'; the objects are: "},
-      {"unknown b", "fruit", "Fruit", -1, "unknown object 'Fruit'"},
-      {"level below running", "", "", -3, "level -3 is outside [0, "},
-      {"level past the leaves", "", "", max_level + 1, "-1: the finest; -2: the running one)"},
-      {"largest int16", "", "", 32767, "level 32767 is outside"},
-      {"smallest int16", "", "", -32768, "level -32768 is outside"},
+      {"unknown a", "plum", "", -1, 0.0, "unknown object 'plum'; the objects are: "},
+      {"unknown b", "fruit", "Fruit", -1, 0.0, "unknown object 'Fruit'"},
+      {"level below running", "", "", -3, 0.0, "level -3 is outside [0, "},
+      {"level past the leaves", "", "", max_level + 1, 0.0,
+       "-1: the finest; -2: the running one)"},
+      {"largest int16", "", "", 32767, 0.0, "level 32767 is outside"},
+      {"smallest int16", "", "", -32768, 0.0, "level -32768 is outside"},
+      {"negative budget", "", "", 0, -1.0, "budget_ms = -1 must be finite and >= 0"},
+      {"NaN budget", "", "", 0, kNaN, "budget_ms = nan must be finite"},
+      {"infinite budget", "", "", 0, kInf, "budget_ms = inf must be finite"},
+      {"budget of minus infinity", "", "", 0, -kInf, "budget_ms = -inf must be finite"},
   };
+  // A level is known for any budget: only the budget's value can make it a bad request.
+  detection_costs_ = LevelCosts(max_level);
+  detection_costs_.record(0, 0.1);
+  scene_->setLevel(1);
+  const std::size_t cycle_contacts = scene_->contacts().size();
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
-    const GetContacts::Response response = ask(c.a, c.b, c.level);
+    const GetContacts::Response response = ask(c.a, c.b, c.level, c.budget_ms);
     EXPECT_FALSE(response.success);
     EXPECT_TRUE(response.contacts.contacts.empty());
     EXPECT_NE(response.message.find(c.says), std::string::npos) << response.message;
+    EXPECT_EQ(scene_->level(), 1);
+    EXPECT_FALSE(scene_->cycleBudget());
+    EXPECT_EQ(scene_->contacts().size(), cycle_contacts);
+  }
+}
+
+TEST_F(ContactServiceTest, GetContactsWithABudgetAnswersAtTheFinestLevelExpectedWithinIt) {
+  const int max_level = scene_->maxLevel();
+  ASSERT_GT(max_level, 4);
+  // Detection ms as if measured by the node's cycles: not monotone (level 2 cheaper than
+  // level 1), levels 4 to max_level - 1 never run.
+  LevelCosts measured(max_level);
+  for (const auto& [level, cost_ms] :
+       {std::pair{0, 0.1}, {1, 0.3}, {2, 0.2}, {3, 0.9}, {max_level, 2.0}}) {
+    measured.record(level, cost_ms);
+  }
+  struct Case {
+    const char* name;
+    bool measured;  ///< false: no cycle has run.
+    std::string a;
+    int level;  ///< Not read with a budget.
+    double budget_ms;
+    int answered_at;
+    std::string says;
+  };
+  const Case cases[] = {
+      {"within", true, "", 0, 0.5, 2, ", the finest expected within 0.5 ms of detection (0.2 ms)"},
+      {"of one object", true, "fruit", 0, 0.5, 2, ", the finest expected within 0.5 ms"},
+      {"the leaves", true, "", 0, 5.0, max_level, "within 5 ms of detection (2 ms)"},
+      {"level not read", true, "", 32767, 1.0, 3, "within 1 ms of detection (0.9 ms)"},
+      {"none fits", true, "", 0, 0.05, 0,
+       ": no level is expected within 0.05 ms of detection; this one is the cheapest measured "
+       "(0.1 ms)"},
+      {"none measured", false, "", max_level, 1.0, 0,
+       ": no level's detection has been measured yet (no cycle has run), so the coarsest"},
+  };
+  scene_->setLevel(1);
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    detection_costs_ = c.measured ? measured : LevelCosts();
+    const GetContacts::Response response = ask(c.a, "", c.level, c.budget_ms);
+    ASSERT_TRUE(response.success) << response.message;
+    EXPECT_EQ(response.level, c.answered_at);
+    EXPECT_EQ(response.contacts.level, c.answered_at);
+    EXPECT_EQ(response.message.rfind(std::to_string(response.contacts.contacts.size()) +
+                                         " contacts at level " + std::to_string(c.answered_at),
+                                     0),
+              0u)
+        << response.message;
+    EXPECT_NE(response.message.find(c.says), std::string::npos) << response.message;
+    EXPECT_EQ(response.contacts.contacts, ask(c.a, "", c.answered_at).contacts.contacts);
+    EXPECT_EQ(scene_->level(), 1);
   }
 }
 

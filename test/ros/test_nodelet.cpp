@@ -127,11 +127,13 @@ class NodeletTest : public ::testing::Test {
     ASSERT_TRUE(waitFor([&] { return contacts_ && contacts_->level == level; }));
   }
 
-  GetContacts getContacts(const std::string& a, const std::string& b, int level) {
+  GetContacts getContacts(const std::string& a, const std::string& b, int level,
+                          double budget_ms = 0.0) {
     GetContacts call;
     call.request.object_a = a;
     call.request.object_b = b;
     call.request.level = static_cast<std::int16_t>(level);
+    call.request.budget_ms = budget_ms;
     EXPECT_TRUE(ros::service::call(kNode + "/get_contacts", call));
     return call;
   }
@@ -260,6 +262,36 @@ TEST_F(NodeletTest, GetContactsAnswersAtAnyLevelAndLeavesTheRunningOneAlone) {
   }
   EXPECT_TRUE(getContacts("", "", GetContacts::Request::RUNNING).response.success)
       << "the node goes on answering";
+}
+
+// The levels come from the node's own measurements: SetUp waits for a cycle at the finest.
+TEST_F(NodeletTest, GetContactsWithABudgetAnswersAtALevelTheNodeMeasured) {
+  const GetContacts ample = getContacts("probe", "floor", 0, 1e6);
+  ASSERT_TRUE(ample.response.success) << ample.response.message;
+  EXPECT_EQ(ample.response.level, max_level_);
+  EXPECT_EQ(ample.response.contacts.level, max_level_);
+  EXPECT_FALSE(ample.response.contacts.contacts.empty());
+  EXPECT_NE(ample.response.message.find("the finest expected within 1e+06 ms of detection"),
+            std::string::npos)
+      << ample.response.message;
+
+  const GetContacts tiny = getContacts("probe", "floor", 0, 1e-9);
+  ASSERT_TRUE(tiny.response.success) << tiny.response.message;
+  EXPECT_LE(tiny.response.level, max_level_);
+  EXPECT_NE(tiny.response.message.find("no level is expected within 1e-09 ms of detection; this "
+                                       "one is the cheapest measured"),
+            std::string::npos)
+      << tiny.response.message;
+
+  const GetContacts refused = getContacts("probe", "floor", 0, -2.5);
+  EXPECT_FALSE(refused.response.success);
+  EXPECT_NE(refused.response.message.find("budget_ms = -2.5 must be finite and >= 0"),
+            std::string::npos)
+      << refused.response.message;
+
+  contacts_.reset();
+  ASSERT_TRUE(waitFor([this] { return contacts_ != nullptr; }));
+  EXPECT_EQ(contacts_->level, max_level_) << "a query with a budget changed the running level";
 }
 
 TEST_F(NodeletTest, MalformedCloudsLeaveTheNodeRunningAndItsStateIntact) {
