@@ -309,7 +309,8 @@ void collideBucketSetsPortable(SphereTree& a, const std::uint32_t* buckets_a,
 }
 
 /// Whether two spheres come closer than the contact distance.
-bool withinReach(const Sphere& a, const Sphere& b, double contact_distance_m) {
+[[gnu::always_inline]] inline bool withinReach(const Sphere& a, const Sphere& b,
+                                             double contact_distance_m) {
   const double reach = a.radius + b.radius + contact_distance_m;
   return (a.center - b.center).squaredNorm() < reach * reach;
 }

@@ -22,14 +22,43 @@ double withRoundingMargin(double radius, const Eigen::Vector3d& center) {
   return radius + kRoundingMargin * (radius + center.cwiseAbs().maxCoeff());
 }
 
+/// Sum of the `Count` products transform(row, j) * features[j], in the order of Eigen's
+/// product on SSE2, whose bits the spheres had before it was written out: the first two rows
+/// one column after the other, the last as a balanced tree. GCC keeps Eigen's loop for a
+/// 3 x 9 product out of line, which made every sphere update pay for a call and a loop.
+template <int Count>
+[[gnu::always_inline]] inline double rowSum(const Eigen::Matrix<double, 3, 9>& transform, int row,
+                                            const double* features) {
+  if (row < 2) {
+    double sum = transform(row, 0) * features[0];
+#pragma GCC unroll 9
+    for (int j = 1; j < Count; ++j) sum = sum + transform(row, j) * features[j];
+    return sum;
+  }
+  double products[Count];
+#pragma GCC unroll 9
+  for (int j = 0; j < Count; ++j) products[j] = transform(row, j) * features[j];
+  if constexpr (Count == 3) return products[0] + (products[1] + products[2]);
+  return ((products[0] + products[1]) + (products[2] + products[3])) +
+         ((products[4] + products[5]) + (products[6] + (products[7] + products[8])));
+}
+
 /// Where a node's sphere centre, at `rest_center` in its cluster's centred coordinates,
 /// goes under the cluster's goal transform.
-Eigen::Vector3d deformedCenter(const Eigen::Vector3d& rest_center,
-                               const ClusterDeformation& deformation, DeformationMode mode) {
+[[gnu::always_inline]] inline Eigen::Vector3d deformedCenter(const Eigen::Vector3d& rest_center,
+                                                             const ClusterDeformation& deformation,
+                                                             DeformationMode mode) {
+  const double x = rest_center.x(), y = rest_center.y(), z = rest_center.z();
+  const Eigen::Matrix<double, 3, 9>& t = deformation.transform;
+  const Eigen::Vector3d& translation = deformation.translation;
   if (mode == DeformationMode::kQuadratic) {
-    return deformation.transform * quadraticFeatures(rest_center) + deformation.translation;
+    const double features[9] = {x, y, z, x * x, y * y, z * z, x * y, y * z, z * x};
+    return {rowSum<9>(t, 0, features) + translation.x(), rowSum<9>(t, 1, features) + translation.y(),
+            rowSum<9>(t, 2, features) + translation.z()};
   }
-  return deformation.transform.leftCols<3>() * rest_center + deformation.translation;
+  const double features[3] = {x, y, z};
+  return {rowSum<3>(t, 0, features) + translation.x(), rowSum<3>(t, 1, features) + translation.y(),
+          rowSum<3>(t, 2, features) + translation.z()};
 }
 
 #if defined(__GNUC__) && defined(__x86_64__)
