@@ -129,7 +129,7 @@ struct ClosestPair {
   SphereContact& contact = contacts.add();
   contact.node_a = a.leafNode(leaf_a);
   contact.node_b = b.leafNode(leaf_b);
-  contact.level = std::max(a.node(contact.node_a).level, b.node(contact.node_b).level);
+  contact.level = std::max(a.leafLevel(leaf_a), b.leafLevel(leaf_b));
   contact.point_a = a.pointIndices()[points_a.first_slot + pair.offset_a];
   contact.point_b = b.pointIndices()[points_b.first_slot + pair.offset_b];
   const std::uint32_t s = pair.offset_a;

@@ -260,6 +260,7 @@ void SphereTree::orderLeaves() {
   leaf_slot_starts_.push_back(static_cast<std::uint32_t>(point_indices_.size()));
   for (const std::uint32_t leaf : leaf_nodes_) {
     leaf_rest_centers_.push_back(nodes_[leaf].rest_center);
+    leaf_levels_.push_back(nodes_[leaf].level);
   }
   leaf_stamps_.assign(leaf_nodes_.size(), 0);
   // Depth first, children in order: the buckets come in leaf order.

@@ -173,6 +173,9 @@ class SphereTree {
   /// The node of the leaf at `ordinal` in leaf order (the order of their points): the
   /// leaves under any node are a contiguous range of that order.
   std::uint32_t leafNode(std::uint32_t ordinal) const { return leaf_nodes_[ordinal]; }
+  /// The level of the leaf at `ordinal` in leaf order: a contact's level without reading
+  /// the leaf's node.
+  std::uint16_t leafLevel(std::uint32_t ordinal) const { return leaf_levels_[ordinal]; }
   /// The buckets (see kBucketLeaves), in leaf order.
   const std::vector<std::uint32_t>& buckets() const { return buckets_; }
   /// The points of the leaf at `ordinal` in leaf order are the slots from
@@ -240,6 +243,7 @@ class SphereTree {
   // a leaf, without a cache line of its own per leaf.
   LeafSpheres leaf_spheres_;
   std::vector<std::uint32_t> leaf_nodes_;
+  std::vector<std::uint16_t> leaf_levels_;
   std::vector<std::uint32_t> leaf_slot_starts_;
   std::vector<Eigen::Vector3d> leaf_rest_centers_;
   /// The cycle of each leaf's entry in leaf_spheres_; a leaf's NodeState may be older and
