@@ -163,6 +163,7 @@ template <VectorWidth Width>
   if constexpr (Width == VectorWidth::kAvx512) {
     if (!closestPairAllAtOnce(points_a, points_b, pair, counters)) return;
   } else if (Width == VectorWidth::kAvx2 && points_b.count <= 8) {
+    // Larger leaves (a tree of leaf_size > 8) take the portable test below.
     const LeafSpheres& spheres_b = b.leafSpheres();
     if (!closestPairNearSphereAvx2(points_a.x, points_a.y, points_a.z, points_a.count, points_b.x,
                                    points_b.y, points_b.z, points_b.count, spheres_b.x[leaf_b],

@@ -38,9 +38,13 @@ template <int Count>
   double products[Count];
 #pragma GCC unroll 9
   for (int j = 0; j < Count; ++j) products[j] = transform(row, j) * features[j];
-  if constexpr (Count == 3) return products[0] + (products[1] + products[2]);
-  return ((products[0] + products[1]) + (products[2] + products[3])) +
-         ((products[4] + products[5]) + (products[6] + (products[7] + products[8])));
+  if constexpr (Count == 3) {
+    return products[0] + (products[1] + products[2]);
+  } else {
+    static_assert(Count == 9, "a linear or a quadratic transform");
+    return ((products[0] + products[1]) + (products[2] + products[3])) +
+           ((products[4] + products[5]) + (products[6] + (products[7] + products[8])));
+  }
 }
 
 /// Where a node's sphere centre, at `rest_center` in its cluster's centred coordinates,
