@@ -91,6 +91,7 @@ std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vect
   }
   if (config.kind == ObjectKind::kKinematic) checked.shape.mode = DeformationMode::kRigid;
   objects_.push_back(makeObject(checked, std::move(rest_points_m)));
+  objects_.back()->revision = ++revisions_;
   sweep_entries_.reserve(objects_.size());
   return objects_.size() - 1;
 }
@@ -98,6 +99,7 @@ std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vect
 void Scene::resetRestShape(std::size_t object, std::vector<Eigen::Vector3d> rest_points_m) {
   std::unique_ptr<Object>& slot = objects_.at(object);
   slot = makeObject(slot->config, std::move(rest_points_m));
+  slot->revision = ++revisions_;
 }
 
 std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
@@ -176,12 +178,10 @@ void Scene::cycle() {
   if (level_budget_) level_budget_->setMaxLevel(max_level);
   detection_costs_.setMaxLevel(max_level);
   stats_.level = level();
-  contacts_.clear();
-  contact_runs_.clear();
   query_counters_ = QueryCounters{};
   std::size_t spheres_before = 0;
   for (const auto& object : objects_) spheres_before += object->tree.counters().spheres_updated;
-  detect(stats_.level, std::nullopt, std::nullopt, contacts_, &contact_runs_);
+  detectCycleContacts(stats_.level);
   std::size_t spheres_after = 0;
   for (const auto& object : objects_) spheres_after += object->tree.counters().spheres_updated;
   const auto detected = Clock::now();
@@ -207,10 +207,14 @@ void Scene::cycle() {
 
 void Scene::refreshStaleTrees() {
   for (auto& object : objects_) {
-    if (!object->stale) continue;
-    object->tree.beginCycle();
-    object->stale = false;
+    if (object->stale) restartTree(*object);
   }
+}
+
+void Scene::restartTree(Object& object) {
+  object.tree.beginCycle();
+  object.stale = false;
+  object.revision = ++revisions_;
 }
 
 void Scene::setLevel(int level) {
@@ -302,10 +306,7 @@ const Sphere& Scene::currentSphere(std::size_t object, std::uint32_t node) {
     throw std::out_of_range("node " + std::to_string(node) + " of object '" + o.config.name +
                             "' is outside [0, " + std::to_string(o.tree.nodeCount()) + ")");
   }
-  if (o.stale) {
-    o.tree.beginCycle();
-    o.stale = false;
-  }
+  if (o.stale) restartTree(o);
   return o.tree.sphere(node);
 }
 

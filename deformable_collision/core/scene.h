@@ -75,6 +75,9 @@ struct CycleStats {
   double cycle_budget_ms = 0.0;  ///< The budget it was picked for; 0 when the level is fixed.
   std::size_t objects_moved = 0;         ///< Stepped, posed or registered this cycle.
   std::size_t object_pairs_tested = 0;   ///< Root sphere tests after the sweep.
+  /// Of those, pairs neither of which changed since the last cycle: their contacts kept, not
+  /// queried again.
+  std::size_t object_pairs_reused = 0;
   std::size_t spheres_updated = 0;
   std::size_t node_pairs_tested = 0;
   std::size_t point_tests = 0;
@@ -131,7 +134,9 @@ class Scene {
   RegistrationReport registerCloud(std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m,
                                    const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
 
-  /// One cycle; its contacts are contacts() and its figures stats().
+  /// One cycle; its contacts are contacts() and its figures stats(). A pair of objects
+  /// neither of which changed since the last cycle, at the same level, keeps that cycle's
+  /// contacts without a query (stats().object_pairs_reused).
   void cycle();
 
   /// Changes the level of the next cycles (no other cost); -1 is the finest, as in
@@ -221,6 +226,18 @@ class Scene {
   /// them.
   void detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
               std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
+  /// Appends the contacts of one candidate pair, in this order, and its run if any.
+  void queryPair(int level, std::uint32_t first, std::uint32_t second,
+                 std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
+  /// The cycle's detection into contacts_ and contact_runs_: a pair of objects that both
+  /// kept their revision since the last cycle's detection at the same level keeps its
+  /// contacts, the others are queried.
+  void detectCycleContacts(int level);
+  /// Appends the last cycle's contacts of the pair (first, second) to contacts_; `cursor`
+  /// walks previous_runs_, which is in the order of the candidate pairs.
+  void reusePreviousContacts(std::uint32_t first, std::uint32_t second, std::size_t& cursor);
+  /// Invalidates the tree's spheres for the body's current points and numbers the change.
+  void restartTree(Object& object);
 
   // The response (scene_response.cpp, scene_contact_normal.cpp).
   struct ContactPush;
@@ -296,6 +313,13 @@ class Scene {
   std::vector<ContactPush> pushes_;
   std::vector<std::uint32_t> support_queue_;
   std::vector<ContactRun> contact_runs_;  ///< The pairs of contacts_, in its order.
+  // The last cycle's contacts and runs, for the pairs that did not move since; swapped with
+  // contacts_ and contact_runs_ each cycle, so neither is reallocated in steady state.
+  std::vector<SceneContact> previous_contacts_;
+  std::vector<ContactRun> previous_runs_;
+  /// The level of the last cycle's detection; none before the first, or after one that threw.
+  std::optional<int> previous_level_;
+  std::uint64_t revisions_ = 0;  ///< The last revision given to an object.
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;

@@ -125,15 +125,64 @@ void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<s
     const bool forward = matches(a, b);
     const bool backward = !forward && matches(b, a);
     if (!forward && !backward) continue;
-    const std::uint32_t first = forward ? a : b;
-    const std::uint32_t second = forward ? b : a;
     ++stats_.object_pairs_tested;
-    PairContacts pair_contacts(contacts, first, second);
-    const std::size_t begin = contacts.size();
-    query_.collide(objects_[first]->tree, objects_[second]->tree, level,
-                   config_.contact_distance_m, pair_contacts, query_counters_);
-    if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
+    queryPair(level, forward ? a : b, forward ? b : a, contacts, runs);
   }
+}
+
+void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second,
+                      std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs) {
+  PairContacts pair_contacts(contacts, first, second);
+  const std::size_t begin = contacts.size();
+  query_.collide(objects_[first]->tree, objects_[second]->tree, level,
+                 config_.contact_distance_m, pair_contacts, query_counters_);
+  if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
+}
+
+// Two objects whose points did not change since the last cycle's detection have the same
+// contacts at the same level: the same candidate pair (their boxes come from the same
+// spheres) and the same query on the same spheres. Only tracked, kinematic and static
+// objects keep their points between cycles: a tracked pile between its clouds, a camera's
+// object on the floor.
+void Scene::detectCycleContacts(int level) {
+  contacts_.swap(previous_contacts_);
+  contact_runs_.swap(previous_runs_);
+  contacts_.clear();
+  contact_runs_.clear();
+  const bool reusable = previous_level_ == level;
+  // Unset until this detection is complete: one that throws leaves nothing to reuse.
+  previous_level_.reset();
+  sweepAndPrune();
+  const auto unchanged = [this](std::uint32_t object) {
+    return objects_[object]->revision == objects_[object]->revision_detected;
+  };
+  std::size_t cursor = 0;
+  for (const auto& [a, b] : candidate_pairs_) {
+    ++stats_.object_pairs_tested;
+    if (reusable && unchanged(a) && unchanged(b)) {
+      ++stats_.object_pairs_reused;
+      reusePreviousContacts(a, b, cursor);
+    } else {
+      queryPair(level, a, b, contacts_, &contact_runs_);
+    }
+  }
+  for (auto& object : objects_) object->revision_detected = object->revision;
+  previous_level_ = level;
+}
+
+void Scene::reusePreviousContacts(std::uint32_t first, std::uint32_t second, std::size_t& cursor) {
+  const auto before_pair = [&](const ContactRun& run) {
+    return run.object_a < first || (run.object_a == first && run.object_b < second);
+  };
+  while (cursor < previous_runs_.size() && before_pair(previous_runs_[cursor])) ++cursor;
+  if (cursor == previous_runs_.size()) return;
+  const ContactRun& previous = previous_runs_[cursor];
+  // No run: the pair had no contacts.
+  if (previous.object_a != first || previous.object_b != second) return;
+  const std::size_t begin = contacts_.size();
+  contacts_.insert(contacts_.end(), previous_contacts_.begin() + previous.begin,
+                   previous_contacts_.begin() + previous.end);
+  contact_runs_.push_back({first, second, begin, contacts_.size()});
 }
 
 }  // namespace deformable_collision

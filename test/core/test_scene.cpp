@@ -9,7 +9,9 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <random>
 #include <set>
+#include <string>
 #include <tuple>
 
 #include "deformable_collision/scenes/demo_scenes.h"
@@ -736,6 +738,166 @@ TEST(Scene, ResetRestShapeReplacesTheShapeOrNothing) {
   }
   EXPECT_THROW(scene.currentSphere(b, static_cast<std::uint32_t>(scene.tree(b).nodeCount())),
                std::out_of_range);
+}
+
+// ---------------------------------------------------------------------------------------
+// A cycle keeps the contacts of a pair of objects neither of which changed since the last
+// cycle instead of querying the pair again; they must be what a query finds. Four tracked
+// objects in a row on the floor, each touching the next, observed at random (half the time
+// at the same points: a new observation all the same); a kinematic jaw against the last one,
+// posed now and then; a dynamic ball dropped on the first two, which moves every cycle;
+// between cycles, queries at other levels, spheres asked for, level changes and a new rest
+// shape. After every cycle, the contacts between objects the response does not move equal,
+// field for field and in order, those contactsAt finds at the cycle's level.
+
+struct ContactReuseCase {
+  const char* name;
+  int level;  ///< The first cycles' level; -1: the finest.
+  std::uint64_t seed;
+};
+
+void PrintTo(const ContactReuseCase& c, std::ostream* os) { *os << c.name; }
+
+class ContactReuseTest : public ::testing::TestWithParam<ContactReuseCase> {};
+
+/// The contacts between two objects that are not dynamic, in their order.
+std::vector<SceneContact> betweenFixedObjects(const Scene& scene,
+                                              const std::vector<SceneContact>& contacts) {
+  std::vector<SceneContact> kept;
+  for (const SceneContact& c : contacts) {
+    if (scene.objectConfig(c.object_a).kind != ObjectKind::kDynamic &&
+        scene.objectConfig(c.object_b).kind != ObjectKind::kDynamic) {
+      kept.push_back(c);
+    }
+  }
+  return kept;
+}
+
+bool sameContact(const SceneContact& x, const SceneContact& y) {
+  const SphereContact& a = x.contact;
+  const SphereContact& b = y.contact;
+  return x.object_a == y.object_a && x.object_b == y.object_b && a.node_a == b.node_a &&
+         a.node_b == b.node_b && a.level == b.level && a.position == b.position &&
+         a.normal == b.normal && a.depth_m == b.depth_m && a.error_bound_m == b.error_bound_m &&
+         a.point_a == b.point_a && a.point_b == b.point_b;
+}
+
+/// The scene of ContactReuseTest: floor 0, tracked objects 1 to 4, jaw 5, ball 6.
+std::unique_ptr<Scene> trackedRowOnFloor(int level, std::vector<Points>& tracked_rests) {
+  auto scene = sceneOnFloor(level);
+  ObjectConfig tracked;
+  tracked.kind = ObjectKind::kTracked;
+  for (int i = 0; i < 4; ++i) {
+    tracked.name = "tracked_" + std::to_string(i);
+    const std::uint64_t seed = 20 + static_cast<std::uint64_t>(i);
+    Points points = i % 2 == 0 ? sampleEllipsoid(500, {0.05, 0.06, 0.05}, seed)
+                               : sampleBox(500, {0.05, 0.05, 0.05}, seed);
+    for (auto& p : points) p += Eigen::Vector3d(-0.15 + 0.1 * i, 0.0, 0.055);
+    tracked_rests.push_back(points);
+    scene->addObject(tracked, points);
+  }
+  ObjectConfig jaw;
+  jaw.name = "jaw";
+  jaw.kind = ObjectKind::kKinematic;
+  scene->addObject(jaw, sampleBox(300, {0.02, 0.06, 0.06}, 30));
+  scene->setPose(5, Eigen::Isometry3d(Eigen::Translation3d(0.225, 0.0, 0.065)));
+  ObjectConfig ball;
+  ball.name = "ball";
+  ball.shape.mode = DeformationMode::kLinear;
+  ball.shape.stiffness = 0.5;
+  Points ball_points = sampleEllipsoid(400, {0.04, 0.04, 0.04}, 31);
+  for (auto& p : ball_points) p += Eigen::Vector3d(-0.1, 0.0, 0.2);
+  scene->addObject(ball, ball_points);
+  return scene;
+}
+
+TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
+  const ContactReuseCase& c = GetParam();
+  std::vector<Points> tracked_rests;
+  auto scene = trackedRowOnFloor(c.level, tracked_rests);
+  std::mt19937_64 rng(c.seed);
+  const auto chance = [&](int one_in) { return rng() % one_in == 0; };
+  const auto millimetres = [&] { return 1e-6 * (static_cast<double>(rng() % 2001) - 1000.0); };
+  const auto offset = [&] {
+    // Within a millimetre, or none at all.
+    if (chance(2)) return Eigen::Vector3d::Zero().eval();
+    return Eigen::Vector3d(millimetres(), millimetres(), millimetres());
+  };
+  std::size_t reused_pairs = 0, kept_contacts = 0;
+  std::vector<SceneContact> queried;
+  for (int cycle = 0; cycle < 60; ++cycle) {
+    for (std::size_t t = 1; t <= 4; ++t) {
+      if (!chance(3)) continue;
+      Points observed = tracked_rests[t - 1];
+      const Eigen::Vector3d shift = offset();
+      for (auto& p : observed) p += shift;
+      scene->observe(t, observed);
+    }
+    if (chance(4)) {
+      scene->setPose(5, Eigen::Isometry3d(Eigen::Translation3d(
+                            Eigen::Vector3d(0.225, 0.0, 0.065) + offset())));
+    }
+    const int max_level = scene->maxLevel();
+    if (chance(5)) {
+      scene->contactsAt(static_cast<int>(rng() % (max_level + 1)), std::nullopt, std::nullopt,
+                        queried);
+    }
+    if (chance(5)) {
+      const std::size_t object = rng() % scene->objectCount();
+      scene->currentSphere(object,
+                           static_cast<std::uint32_t>(rng() % scene->tree(object).nodeCount()));
+    }
+    if (chance(10)) scene->setLevel(static_cast<int>(rng() % (max_level + 2)) - 1);
+    if (chance(15)) {
+      const std::size_t t = 1 + rng() % 4;
+      scene->resetRestShape(t, tracked_rests[t - 1]);
+    }
+    scene->cycle();
+    const std::vector<SceneContact> kept = betweenFixedObjects(*scene, scene->contacts());
+    scene->contactsAt(scene->stats().level, std::nullopt, std::nullopt, queried);
+    const std::vector<SceneContact> found = betweenFixedObjects(*scene, queried);
+    ASSERT_EQ(kept.size(), found.size()) << "cycle " << cycle;
+    for (std::size_t k = 0; k < kept.size(); ++k) {
+      ASSERT_TRUE(sameContact(kept[k], found[k]))
+          << "cycle " << cycle << ", contact " << k << " of objects " << kept[k].object_a
+          << " and " << kept[k].object_b;
+    }
+    reused_pairs += scene->stats().object_pairs_reused;
+    kept_contacts += kept.size();
+  }
+  // The case tested something: pairs were kept, and fixed objects touched.
+  EXPECT_GT(reused_pairs, 20u);
+  EXPECT_GT(kept_contacts, 0u);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    LevelsAndSeeds, ContactReuseTest,
+    ::testing::Values(ContactReuseCase{"Level0", 0, 1}, ContactReuseCase{"Level2", 2, 2},
+                      ContactReuseCase{"Level4", 4, 3}, ContactReuseCase{"Finest", -1, 4},
+                      ContactReuseCase{"FinestOtherSeed", -1, 5}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+TEST(Scene, PairsOfUnchangedObjectsAreNotQueriedAgain) {
+  std::vector<Points> tracked_rests;
+  auto scene = trackedRowOnFloor(-1, tracked_rests);
+  scene->cycle();
+  scene->cycle();
+  // The ball, still falling, is no candidate: no pair is queried.
+  const CycleStats settled = scene->stats();
+  EXPECT_GE(settled.object_pairs_reused, 8u);
+  EXPECT_EQ(settled.object_pairs_reused, settled.object_pairs_tested);
+  EXPECT_EQ(settled.node_pairs_tested, 0u);
+  scene->observe(2, tracked_rests[1]);
+  scene->cycle();
+  // Tracked object 2 touches the floor and tracked objects 1 and 3: those pairs are queried.
+  const CycleStats observed = scene->stats();
+  EXPECT_EQ(observed.object_pairs_reused + 3, settled.object_pairs_reused);
+  EXPECT_GT(observed.node_pairs_tested, 0u);
+  scene->setLevel(2);
+  scene->cycle();
+  EXPECT_EQ(scene->stats().object_pairs_reused, 0u);
+  scene->cycle();
+  EXPECT_EQ(scene->stats().object_pairs_reused, settled.object_pairs_reused);
 }
 
 TEST(Scene, CurrentSpheresFollowTheResponse) {
