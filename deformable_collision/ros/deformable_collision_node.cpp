@@ -389,6 +389,8 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.objects = static_cast<std::uint32_t>(scene_.objectCount());
   stats.points = static_cast<std::uint32_t>(points);
   stats.objects_moved = static_cast<std::uint32_t>(cycle.objects_moved);
+  stats.object_pairs_tested = static_cast<std::uint32_t>(cycle.object_pairs_tested);
+  stats.object_pairs_reused = static_cast<std::uint32_t>(cycle.object_pairs_reused);
   stats.spheres_updated = static_cast<std::uint32_t>(cycle.spheres_updated);
   stats.node_pairs_tested = static_cast<std::uint32_t>(cycle.node_pairs_tested);
   stats.point_tests = static_cast<std::uint32_t>(cycle.point_tests);

@@ -168,6 +168,9 @@ TEST_F(NodeletTest, PublishesContactsBetweenTouchingObjects) {
   EXPECT_EQ(stats_->max_level, max_level_);
   EXPECT_FALSE(stats_->level_auto) << "the config has no level: auto";
   EXPECT_EQ(stats_->cycle_budget_ms, 0.0);
+  // Between the probe's clouds the probe and the floor keep their contacts, unqueried.
+  ASSERT_TRUE(waitFor([this] { return stats_ && stats_->object_pairs_reused > 0; }));
+  EXPECT_LE(stats_->object_pairs_reused, stats_->object_pairs_tested);
 }
 
 TEST_F(NodeletTest, SetLevelAnswersGoodAndBadRequests) {
@@ -353,6 +356,10 @@ TEST_F(NodeletTest, TrackedCloudsMoveTheObjectAndItsContacts) {
   const GetContacts answer = getContacts("probe", "", GetContacts::Request::FINEST);
   ASSERT_TRUE(answer.response.success) << answer.response.message;
   EXPECT_TRUE(answer.response.contacts.contacts.empty());
+  // The cycles after the cloud query the moved probe again: it no longer touches the floor.
+  contacts_.reset();
+  ASSERT_TRUE(waitFor([this] { return contacts_ != nullptr; }));
+  EXPECT_TRUE(contacts_->contacts.empty());
 }
 
 TEST_F(NodeletTest, TrackedObjectKeepsItsPointsWhenTheFirstCloudHasHoles) {
