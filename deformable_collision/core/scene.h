@@ -229,8 +229,8 @@ class Scene {
   /// Appends the contacts of one candidate pair, in this order, and its run if any.
   void queryPair(int level, std::uint32_t first, std::uint32_t second,
                  std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
-  /// The cycle's detection into contacts_ and contact_runs_: a pair of objects that both
-  /// kept their revision since the last cycle's detection at the same level keeps its
+  /// The cycle's detection into contacts_ and contact_runs_: a pair of objects neither of
+  /// which got a revision since the last cycle's detection at the same level keeps its
   /// contacts, the others are queried.
   void detectCycleContacts(int level);
   /// Appends the last cycle's contacts of the pair (first, second) to contacts_; `cursor`
@@ -320,6 +320,8 @@ class Scene {
   /// The level of the last cycle's detection; none before the first, or after one that threw.
   std::optional<int> previous_level_;
   std::uint64_t revisions_ = 0;  ///< The last revision given to an object.
+  /// revisions_ at the last cycle's detection: objects numbered up to it kept their points.
+  std::uint64_t revisions_detected_ = 0;
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;

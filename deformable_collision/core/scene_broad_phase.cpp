@@ -154,7 +154,7 @@ void Scene::detectCycleContacts(int level) {
   previous_level_.reset();
   sweepAndPrune();
   const auto unchanged = [this](std::uint32_t object) {
-    return objects_[object]->revision == objects_[object]->revision_detected;
+    return objects_[object]->revision <= revisions_detected_;
   };
   std::size_t cursor = 0;
   for (const auto& [a, b] : candidate_pairs_) {
@@ -166,7 +166,7 @@ void Scene::detectCycleContacts(int level) {
       queryPair(level, a, b, contacts_, &contact_runs_);
     }
   }
-  for (auto& object : objects_) object->revision_detected = object->revision;
+  revisions_detected_ = revisions_;
   previous_level_ = level;
 }
 

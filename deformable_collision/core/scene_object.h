@@ -131,11 +131,8 @@ struct Scene::Object {
   SphereTree tree;
   bool stale = false;  ///< Moved since its tree's spheres were last invalidated.
   /// Scene-wide number of the last restart of its tree (Scene::restartTree), new for every
-  /// object made, so that equal numbers mean the same points.
+  /// object made; numbers only grow, so an object numbered after a detection changed since.
   std::uint64_t revision = 0;
-  /// Its revision when the last cycle's contacts were found: a pair of objects both still
-  /// at it has the same contacts.
-  std::uint64_t revision_detected = 0;
   /// Box around the object's points, grown by half the contact distance, for the broad
   /// phase: around the root sphere, or, for a static object, its points' own box once.
   Eigen::AlignedBox3d sweep_box;
