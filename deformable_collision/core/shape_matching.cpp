@@ -144,11 +144,12 @@ void indexPointSlots(const std::vector<Cluster>& clusters, std::size_t points,
 
 ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
                                      const ShapeMatchingConfig& config,
-                                     bool use_wide_vectors)
+                                     VectorWidth vectors)
     : config_(config) {
   validate(rest_points, config);
-  wide_vectors_ = use_wide_vectors && wideVectorsAvailable() &&
-                  rest_points.size() <= detail::kMostWidePoints;
+  vector_width_ = rest_points.size() <= detail::kMostWidePoints
+                      ? std::min(vectors, widestVectors())
+                      : VectorWidth::kPortable;
   const std::size_t n = rest_points.size();
   point_mass_kg_ = config.mass_kg / static_cast<double>(n);
   rest_positions_ = std::move(rest_points);
@@ -233,7 +234,7 @@ void ShapeMatchingBody::sumCurrentState() {
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     cluster_sums_[k] = detail::clusterSums<kFeatureCount<Mode>>(
         clusters_[k], point_mass_kg_, positions_, velocities_, deformations_[k].center_of_mass,
-        wide_vectors_);
+        vector_width_);
   }
 }
 
@@ -253,7 +254,7 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
       if (!detail::carriedStateFits(deformations_[k], shift, rebase_distance_m_)) {
         deformations_[k] = fresh_deformations_[k];
         cluster_sums_[k] = detail::clusterSums<K>(cluster, point_mass_kg_, positions_, velocities_,
-                                                  deformations_[k].center_of_mass, wide_vectors_);
+                                                  deformations_[k].center_of_mass, vector_width_);
       }
       detail::registerCluster<Mode>(cluster, cluster_sums_[k], deformations_[k]);
     } else {
@@ -283,7 +284,7 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
     // The filled-in points moved: the sums must describe the positions now held.
     sumCurrentState<Mode>();
   }
-  detail::measureFitResiduals<Mode>(clusters_, positions_, wide_vectors_, deformations_);
+  detail::measureFitResiduals<Mode>(clusters_, positions_, vector_width_, deformations_);
 }
 
 }  // namespace deformable_collision

@@ -118,14 +118,15 @@ struct ClusterSums {
 /// per-cycle work and allocate nothing.
 class ShapeMatchingBody {
  public:
-  /// Uses the wide vectors, if asked and available, for the per-point passes of a step and
-  /// of the fit residuals: eight points per instruction, the same bits as without. Sums over
-  /// points are taken in eight interleaved parts either way.
+  /// Runs the per-point passes of a step and of the fit residuals on vectors of up to
+  /// `vectors` (the CPU's widest if it has not those): eight (AVX-512) or four (AVX2)
+  /// points per instruction, the same bits as the portable code. Sums over points are taken
+  /// in eight interleaved parts at every width.
   /// @throw std::invalid_argument naming the bad value: empty or non-finite rest points,
   ///        a mode outside DeformationMode, mass_kg <= 0, stiffness, beta or damping outside
   ///        [0, 1], clusters outside [1, points], negative overlap.
   ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points, const ShapeMatchingConfig& config,
-                    bool use_wide_vectors = wideVectorsAvailable());
+                    VectorWidth vectors = widestVectors());
 
   /// One explicit step: v += alpha (g - x) / h + h a, x += h v, with momentum-conserving
   /// damping of the non-rigid velocity. Points shared by clusters move to the mean goal.
@@ -187,7 +188,7 @@ class ShapeMatchingBody {
   Eigen::Vector3d meanVelocity() const;
 
   const ShapeMatchingConfig& config() const { return config_; }
-  bool usesWideVectors() const { return wide_vectors_; }
+  VectorWidth vectorWidth() const { return vector_width_; }
   std::size_t pointCount() const { return positions_.size(); }
   double pointMassKg() const { return point_mass_kg_; }
   const std::vector<Eigen::Vector3d>& restPositions() const { return rest_positions_; }
@@ -214,7 +215,7 @@ class ShapeMatchingBody {
   void refitDisplacedClusters();
 
   ShapeMatchingConfig config_;
-  bool wide_vectors_ = false;
+  VectorWidth vector_width_ = VectorWidth::kPortable;
   double point_mass_kg_ = 0.0;
   std::vector<Eigen::Vector3d> rest_positions_;
   std::vector<Eigen::Vector3d> positions_;

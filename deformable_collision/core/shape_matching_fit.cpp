@@ -156,14 +156,17 @@ Eigen::Matrix3d linearGoalTransform(const Eigen::Matrix3d& fit,
 template <int K>
 double fitResidual(const Cluster& cluster, const ClusterDeformation& deformation,
                    const std::vector<Eigen::Vector3d>& positions,
-                   [[maybe_unused]] bool wide_vectors) {
+                   [[maybe_unused]] VectorWidth width) {
   const GoalKernel<K> kernel(deformation);
   double deviation_squared = 0.0;
   std::size_t j = 0;
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (wide_vectors) {
+  if (width == VectorWidth::kAvx512) {
     std::tie(deviation_squared, j) =
         largestSquaredGoalDistanceAvx512<K>(kernel, cluster, positions.data());
+  } else if (width == VectorWidth::kAvx2) {
+    std::tie(deviation_squared, j) =
+        largestSquaredGoalDistanceAvx2<K>(kernel, cluster, positions.data());
   }
 #endif
   for (; j < cluster.points.size(); ++j) {
@@ -282,11 +285,11 @@ void stepGoal(const Cluster& cluster, const ClusterDeformation& deformation, dou
 
 template <DeformationMode Mode>
 void measureFitResiduals(const std::vector<Cluster>& clusters,
-                         const std::vector<Eigen::Vector3d>& positions, bool wide_vectors,
+                         const std::vector<Eigen::Vector3d>& positions, VectorWidth width,
                          std::vector<ClusterDeformation>& deformations) {
   for (std::size_t k = 0; k < clusters.size(); ++k) {
     deformations[k].goal_deviation_bound_m = fitResidual<kFeatureCount<Mode>>(
-        clusters[k], deformations[k], positions, wide_vectors);
+        clusters[k], deformations[k], positions, width);
   }
 }
 
@@ -300,7 +303,7 @@ void measureFitResiduals(const std::vector<Cluster>& clusters,
   template void stepGoal<MODE>(const Cluster&, const ClusterDeformation&, double, bool,         \
                                Eigen::Matrix<double, 3, 9>&, Eigen::Vector3d&);                 \
   template void measureFitResiduals<MODE>(const std::vector<Cluster>&,                          \
-                                          const std::vector<Eigen::Vector3d>&, bool,            \
+                                          const std::vector<Eigen::Vector3d>&, VectorWidth,     \
                                           std::vector<ClusterDeformation>&);
 DEFORMABLE_COLLISION_SHAPE_MATCHING_FIT(DeformationMode::kRigid)
 DEFORMABLE_COLLISION_SHAPE_MATCHING_FIT(DeformationMode::kLinear)

@@ -49,7 +49,7 @@ void stepGoal(const Cluster& cluster, const ClusterDeformation& deformation, dou
 /// a point to its fitted position (docs/design.md, erratum 3), measured on the points.
 template <DeformationMode Mode>
 void measureFitResiduals(const std::vector<Cluster>& clusters,
-                         const std::vector<Eigen::Vector3d>& positions, bool wide_vectors,
+                         const std::vector<Eigen::Vector3d>& positions, VectorWidth width,
                          std::vector<ClusterDeformation>& deformations);
 
 }  // namespace deformable_collision::detail

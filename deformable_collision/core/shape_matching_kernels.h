@@ -248,14 +248,14 @@ template <int K, bool WithSpin>
 Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end,
                       const double* weights, const std::vector<Eigen::Vector3d>& positions,
                       const std::vector<Eigen::Vector3d>& velocities,
-                      const Eigen::Vector3d& reference, bool wide_vectors);
+                      const Eigen::Vector3d& reference, VectorWidth width);
 
 /// The moments of the whole cluster, with spin, as stored sums about `reference`.
 template <int K>
 ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
                         const std::vector<Eigen::Vector3d>& positions,
                         const std::vector<Eigen::Vector3d>& velocities,
-                        const Eigen::Vector3d& reference, bool wide_vectors);
+                        const Eigen::Vector3d& reference, VectorWidth width);
 
 /// Adds `scale` times raw sums to stored sums.
 template <int K>

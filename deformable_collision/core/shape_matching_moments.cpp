@@ -10,13 +10,16 @@ template <int K, bool WithSpin>
 Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end,
                       const double* weights, const std::vector<Eigen::Vector3d>& positions,
                       const std::vector<Eigen::Vector3d>& velocities,
-                      const Eigen::Vector3d& reference, [[maybe_unused]] bool wide_vectors) {
+                      const Eigen::Vector3d& reference, [[maybe_unused]] VectorWidth width) {
   PartialMoments<K> sums;
   std::size_t j = begin;
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (wide_vectors) {
+  if (width == VectorWidth::kAvx512) {
     j = accumulateAvx512<K, WithSpin>(cluster, begin, end, weights, positions.data(),
                                       velocities.data(), reference, sums);
+  } else if (width == VectorWidth::kAvx2) {
+    j = accumulateAvx2<K, WithSpin>(cluster, begin, end, weights, positions.data(),
+                                    velocities.data(), reference, sums);
   }
 #endif
   // The wide vectors took whole blocks of eight, so slot j + n goes to part n.
@@ -43,13 +46,13 @@ template <int K>
 ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
                         const std::vector<Eigen::Vector3d>& positions,
                         const std::vector<Eigen::Vector3d>& velocities,
-                        const Eigen::Vector3d& reference, bool wide_vectors) {
+                        const Eigen::Vector3d& reference, VectorWidth width) {
   // Exclusive slots are summed unweighted and scaled by the point mass once.
   const Moments<K> exclusive = accumulate<K, true>(cluster, 0, cluster.exclusive_count, nullptr,
-                                                   positions, velocities, reference, wide_vectors);
+                                                   positions, velocities, reference, width);
   const Moments<K> shared = accumulate<K, true>(
       cluster, cluster.exclusive_count, cluster.points.size(), cluster.shared_weights_kg.data(),
-      positions, velocities, reference, wide_vectors);
+      positions, velocities, reference, width);
   ClusterSums sums;
   sums.reference = reference;
   for (int r = 0; r < 3; ++r) {
@@ -74,15 +77,15 @@ ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
   template Moments<K> accumulate<K, false>(                                                     \
       const Cluster&, std::size_t, std::size_t, const double*,                                  \
       const std::vector<Eigen::Vector3d>&, const std::vector<Eigen::Vector3d>&,                 \
-      const Eigen::Vector3d&, bool);                                                            \
+      const Eigen::Vector3d&, VectorWidth);                                                     \
   template Moments<K> accumulate<K, true>(                                                      \
       const Cluster&, std::size_t, std::size_t, const double*,                                  \
       const std::vector<Eigen::Vector3d>&, const std::vector<Eigen::Vector3d>&,                 \
-      const Eigen::Vector3d&, bool);                                                            \
+      const Eigen::Vector3d&, VectorWidth);                                                     \
   template ClusterSums clusterSums<K>(const Cluster&, double,                                   \
                                       const std::vector<Eigen::Vector3d>&,                      \
                                       const std::vector<Eigen::Vector3d>&,                      \
-                                      const Eigen::Vector3d&, bool);
+                                      const Eigen::Vector3d&, VectorWidth);
 DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(3)
 DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(9)
 #undef DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS

@@ -79,13 +79,16 @@ PartialMoments<K> moveExclusivePoints(const GoalKernel<K> kernel, const Cluster&
                                       const StepMotion motion, const Eigen::Vector3d reference,
                                       std::vector<Eigen::Vector3d>& positions,
                                       std::vector<Eigen::Vector3d>& velocities,
-                                      [[maybe_unused]] bool wide_vectors) {
+                                      [[maybe_unused]] VectorWidth width) {
   PartialMoments<K> moments;
   std::size_t j = 0;
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (wide_vectors) {
+  if (width == VectorWidth::kAvx512) {
     j = detail::moveExclusiveAvx512<K, Damped>(kernel, cluster, motion, positions.data(),
                                                velocities.data(), reference, moments);
+  } else if (width == VectorWidth::kAvx2) {
+    j = detail::moveExclusiveAvx2<K, Damped>(kernel, cluster, motion, positions.data(),
+                                             velocities.data(), reference, moments);
   }
 #endif
   // The wide vectors took whole blocks of eight, so slot j + n goes to part n.
@@ -111,10 +114,14 @@ PartialMoments<K> moveExclusivePoints(const GoalKernel<K> kernel, const Cluster&
 /// Adds the goals of the cluster's shared points to `goal_sums`.
 template <int K>
 void addSharedGoals(const GoalKernel<K> kernel, const Cluster& cluster,
-                    std::vector<Eigen::Vector3d>& goal_sums, [[maybe_unused]] bool wide_vectors) {
+                    std::vector<Eigen::Vector3d>& goal_sums, [[maybe_unused]] VectorWidth width) {
   std::size_t j = cluster.exclusive_count;
 #if defined(__GNUC__) && defined(__x86_64__)
-  if (wide_vectors) j = detail::addSharedGoalsAvx512<K>(kernel, cluster, goal_sums.data());
+  if (width == VectorWidth::kAvx512) {
+    j = detail::addSharedGoalsAvx512<K>(kernel, cluster, goal_sums.data());
+  } else if (width == VectorWidth::kAvx2) {
+    j = detail::addSharedGoalsAvx2<K>(kernel, cluster, goal_sums.data());
+  }
 #endif
   for (; j < cluster.points.size(); ++j) {
     double goal[3];
@@ -175,8 +182,8 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     const GoalKernel<K> kernel(goal_transforms_[k], goal_translations_[k]);
     const Eigen::Vector3d reference = deformations_[k].center_of_mass;
     const PartialMoments<K> next = moveExclusivePoints<K, Damped>(
-        kernel, cluster, motion, reference, positions_, velocities_, wide_vectors_);
-    addSharedGoals<K>(kernel, cluster, goal_sums_, wide_vectors_);
+        kernel, cluster, motion, reference, positions_, velocities_, vector_width_);
+    addSharedGoals<K>(kernel, cluster, goal_sums_, vector_width_);
     ClusterSums& sums = cluster_sums_[k];
     sums = ClusterSums{};
     sums.reference = reference;
@@ -199,12 +206,12 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
       detail::addScaled(detail::accumulate<K, Damped>(
                             cluster, cluster.exclusive_count, cluster.points.size(),
                             cluster.shared_weights_kg.data(), positions_, velocities_,
-                            cluster_sums_[k].reference, wide_vectors_),
+                            cluster_sums_[k].reference, vector_width_),
                         1.0, cluster_sums_[k]);
     }
     detail::registerCluster<Mode>(cluster, cluster_sums_[k], deformations_[k]);
   }
-  detail::measureFitResiduals<Mode>(clusters_, positions_, wide_vectors_, deformations_);
+  detail::measureFitResiduals<Mode>(clusters_, positions_, vector_width_, deformations_);
 }
 
 void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,

@@ -1,9 +1,10 @@
 #pragma once
 
-// Internal to the core: the AVX-512 twins of shape matching's per-point passes, eight slots
-// per instruction with the same bits as the portable code. Each handles whole blocks of
-// eight and returns the first slot left for the portable code. Callable only where
-// wideVectorsAvailable(), for a body of at most kMostWidePoints points.
+// Internal to the core: the AVX-512 and AVX2 twins of shape matching's per-point passes,
+// eight or four slots per instruction with the same bits as the portable code. Each handles
+// whole blocks (of eight where the sums' parts are concerned) and returns the first slot left
+// for the portable code. Callable only where widestVectors() reaches their width, for a body
+// of at most kMostWidePoints points.
 
 #include <Eigen/Core>
 #include <cstddef>
@@ -46,6 +47,31 @@ __attribute__((target("avx512f"))) std::size_t addSharedGoalsAvx512(const GoalKe
 /// The largest squaredGoalDistance over the cluster's first slots, and the first slot left.
 template <int K>
 __attribute__((target("avx512f"))) std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512(
+    const GoalKernel<K> kernel, const Cluster& cluster, const Eigen::Vector3d* positions);
+
+/// accumulateAvx512 on four lanes.
+template <int K, bool WithSpin>
+__attribute__((target("avx2"))) std::size_t accumulateAvx2(
+    const Cluster& cluster, std::size_t begin, std::size_t end, const double* weights,
+    const Eigen::Vector3d* positions, const Eigen::Vector3d* velocities,
+    const Eigen::Vector3d reference, PartialMoments<K>& sums);
+
+/// moveExclusiveAvx512 on four lanes.
+template <int K, bool Damped>
+__attribute__((target("avx2"))) std::size_t moveExclusiveAvx2(
+    const GoalKernel<K> kernel, const Cluster& cluster, const StepMotion motion,
+    Eigen::Vector3d* positions, Eigen::Vector3d* velocities, const Eigen::Vector3d reference,
+    PartialMoments<K>& sums);
+
+/// addSharedGoalsAvx512 on four lanes.
+template <int K>
+__attribute__((target("avx2"))) std::size_t addSharedGoalsAvx2(const GoalKernel<K> kernel,
+                                                                const Cluster& cluster,
+                                                                Eigen::Vector3d* goal_sums);
+
+/// largestSquaredGoalDistanceAvx512 on four lanes.
+template <int K>
+__attribute__((target("avx2"))) std::pair<double, std::size_t> largestSquaredGoalDistanceAvx2(
     const GoalKernel<K> kernel, const Cluster& cluster, const Eigen::Vector3d* positions);
 #endif
 

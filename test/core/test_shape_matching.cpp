@@ -7,6 +7,7 @@
 #include <limits>
 #include <random>
 #include <string>
+#include <tuple>
 
 #include "deformable_collision/scenes/shapes.h"
 
@@ -317,7 +318,9 @@ struct WideVectorCase {
 
 void PrintTo(const WideVectorCase& c, std::ostream* os) { *os << c.name; }
 
-class WideVectorTest : public ::testing::TestWithParam<WideVectorCase> {};
+using WidthAndCase = std::tuple<VectorWidth, WideVectorCase>;
+
+class WideVectorTest : public ::testing::TestWithParam<WidthAndCase> {};
 
 void expectSameBits(const ShapeMatchingBody& wide, const ShapeMatchingBody& portable,
                     const std::string& when) {
@@ -332,19 +335,19 @@ void expectSameBits(const ShapeMatchingBody& wide, const ShapeMatchingBody& port
   }
 }
 
-// The wide-vector passes (moves, sums, goals of shared points, fit residuals) give the same
-// bits as the portable ones, through simulation, tracking with unobserved points, and
-// responses.
+// The vector passes of each width (moves, sums, goals of shared points, fit residuals) give
+// the same bits as the portable ones, through simulation, tracking with unobserved points,
+// and responses.
 TEST_P(WideVectorTest, GiveTheSameBitsAsThePortableCode) {
-  if (!wideVectorsAvailable()) GTEST_SKIP() << "this CPU has no AVX-512";
-  const WideVectorCase& c = GetParam();
+  const auto& [width, c] = GetParam();
+  if (widestVectors() < width) GTEST_SKIP() << "this CPU has not these vectors";
   ShapeMatchingConfig config = configFor(c.mode, c.clusters);
   config.stiffness = 0.7;
   const Points rest = sampleEllipsoid(c.points, {0.3, 0.2, 0.15}, 21);
-  ShapeMatchingBody wide(rest, config, true);
-  ShapeMatchingBody portable(rest, config, false);
-  ASSERT_TRUE(wide.usesWideVectors());
-  ASSERT_FALSE(portable.usesWideVectors());
+  ShapeMatchingBody wide(rest, config, width);
+  ShapeMatchingBody portable(rest, config, VectorWidth::kPortable);
+  ASSERT_EQ(wide.vectorWidth(), width);
+  ASSERT_EQ(portable.vectorWidth(), VectorWidth::kPortable);
   const Points bent = mapped(rest, [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
     return kRotation * Eigen::Vector3d(p.x() + 2.0 * p.y() * p.y(), 1.3 * p.y(), 0.8 * p.z());
   });
@@ -383,13 +386,16 @@ TEST_P(WideVectorTest, GiveTheSameBitsAsThePortableCode) {
 
 INSTANTIATE_TEST_SUITE_P(
     Modes, WideVectorTest,
-    ::testing::Values(
-        WideVectorCase{"rigid_one_cluster", DeformationMode::kRigid, 1, 203},
-        WideVectorCase{"linear_shared_seams", DeformationMode::kLinear, 4, 701},
-        WideVectorCase{"quadratic_shared_seams", DeformationMode::kQuadratic, 3, 517},
-        WideVectorCase{"fewer_points_than_a_vector", DeformationMode::kQuadratic, 2, 13}),
-    [](const ::testing::TestParamInfo<WideVectorCase>& info) {
-      return std::string(info.param.name);
+    ::testing::Combine(
+        ::testing::Values(VectorWidth::kAvx2, VectorWidth::kAvx512),
+        ::testing::Values(
+            WideVectorCase{"rigid_one_cluster", DeformationMode::kRigid, 1, 203},
+            WideVectorCase{"linear_shared_seams", DeformationMode::kLinear, 4, 701},
+            WideVectorCase{"quadratic_shared_seams", DeformationMode::kQuadratic, 3, 517},
+            WideVectorCase{"fewer_points_than_a_vector", DeformationMode::kQuadratic, 2, 13})),
+    [](const ::testing::TestParamInfo<WidthAndCase>& info) {
+      return std::string(std::get<0>(info.param) == VectorWidth::kAvx2 ? "avx2_" : "avx512_") +
+             std::get<1>(info.param).name;
     });
 
 // ---------------------------------------------------------------------------------------
