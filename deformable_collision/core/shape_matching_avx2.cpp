@@ -4,6 +4,8 @@
 // rounds twice.
 #include "deformable_collision/core/shape_matching_wide.h"
 
+#include <algorithm>
+
 #include "deformable_collision/core/wide_kernels.h"
 
 #if defined(__GNUC__) && defined(__x86_64__)
