@@ -131,6 +131,42 @@ TEST(ReadCloud, NonFinitePointsAreDroppedOrKeptAsNaN) {
   EXPECT_EQ(kept[2], kPoints[2]);
 }
 
+TEST(ReadCloud, FieldsAreFoundByNameWhereverTheyAreInAPoint) {
+  // x last, y first, another field between: read through the same offsets in either byte order.
+  const std::uint32_t offsets[3] = {12, 0, 4};
+  for (const bool big_endian : {false, true}) {
+    PointCloud2 cloud;
+    const char* names[3] = {"x", "y", "z"};
+    for (std::uint32_t axis = 0; axis < 3; ++axis) {
+      PointField field;
+      field.name = names[axis];
+      field.offset = offsets[axis];
+      field.datatype = PointField::FLOAT32;
+      field.count = 1;
+      cloud.fields.push_back(field);
+    }
+    cloud.height = 1;
+    cloud.width = static_cast<std::uint32_t>(kPoints.size());
+    cloud.point_step = 20;
+    cloud.row_step = cloud.width * cloud.point_step;
+    cloud.is_bigendian = big_endian;
+    cloud.data.assign(cloud.row_step, 0xAB);
+    for (std::size_t i = 0; i < kPoints.size(); ++i) {
+      for (int axis = 0; axis < 3; ++axis) {
+        putCoordinate(cloud.data.data() + i * cloud.point_step + offsets[axis], PointField::FLOAT32,
+                      kPoints[i][axis], big_endian);
+      }
+    }
+    std::vector<Eigen::Vector3d> points;
+    const auto result = readCloudPoints(cloud, NonFinitePoints::kDrop, 1000, points);
+    ASSERT_TRUE(result.ok()) << result.error;
+    ASSERT_EQ(points.size(), kPoints.size());
+    for (std::size_t i = 0; i < kPoints.size(); ++i) {
+      EXPECT_EQ(points[i], kPoints[i]) << "point " << i << (big_endian ? ", big endian" : "");
+    }
+  }
+}
+
 TEST(ReadCloud, EmptyCloudIsReadAsNoPoints) {
   const PointCloud2 cloud = makeCloud({}, Layout{});
   std::vector<Eigen::Vector3d> points = kPoints;
