@@ -59,6 +59,8 @@ geometry_msgs::TransformStamped toTransformStamped(const Eigen::Isometry3d& pose
 std::string farCoordinateProblem(const std::vector<Eigen::Vector3d>& points, double bound_m,
                                  const std::string& frame) {
   for (std::size_t i = 0; i < points.size(); ++i) {
+    // One comparison per coordinate for the usual point, which is near and finite.
+    if ((points[i].array().abs() <= bound_m).all()) continue;
     if (points[i].array().isNaN().all()) continue;
     for (int axis = 0; axis < 3; ++axis) {
       if (std::abs(points[i][axis]) <= bound_m) continue;

@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+#include <string>
+#include <vector>
+
 namespace deformable_collision {
 namespace {
 
@@ -67,6 +71,35 @@ TEST(CloudTransform, AnEmptyBufferKnowsNoFrame) {
   const tf2::BufferCore empty;
   EXPECT_EQ(lookUpCloudTransform(empty, "world", "camera", ros::Time(0)).status,
             CloudTransformStatus::kUnknownFrame);
+}
+
+struct FarCoordinateCase {
+  const char* name;
+  Eigen::Vector3d point;
+  const char* problem;  ///< What the message names; empty: no problem.
+};
+
+TEST(FarCoordinateProblem, NamesTheFirstCoordinateBeyondTheBound) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const FarCoordinateCase cases[] = {
+      {"near", {1.0, -2.0, 3.0}, ""},
+      {"on_the_bound", {-10.0, 10.0, 0.0}, ""},
+      {"unobserved", {nan, nan, nan}, ""},
+      {"far_z", {0.0, 0.0, -10.5}, "point 1 has z = -10.5 m"},
+      {"infinite_y", {0.0, inf, 0.0}, "point 1 has y = inf m"},
+      {"one_nan_coordinate", {nan, 0.0, 0.0}, "point 1 has x = nan m"},
+  };
+  for (const FarCoordinateCase& c : cases) {
+    const std::vector<Eigen::Vector3d> points = {Eigen::Vector3d(0.5, 0.5, 0.5), c.point};
+    const std::string problem = farCoordinateProblem(points, 10.0, "camera");
+    if (std::string(c.problem).empty()) {
+      EXPECT_EQ(problem, "") << c.name;
+    } else {
+      EXPECT_NE(problem.find(c.problem), std::string::npos) << c.name << ": " << problem;
+      EXPECT_NE(problem.find("'camera'"), std::string::npos) << c.name << ": " << problem;
+    }
+  }
 }
 
 }  // namespace
