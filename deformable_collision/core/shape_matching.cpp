@@ -19,6 +19,12 @@ using detail::kFeatureCount;
 using detail::slotWeightKg;
 using detail::withMode;
 
+/// Whether x, y and z are finite, in fewer instructions than Eigen's allFinite: v - v is 0
+/// for a finite v and NaN for an infinite or NaN one, and a NaN carries through the sum.
+bool isFinitePoint(const Eigen::Vector3d& p) {
+  return (p.x() - p.x()) + (p.y() - p.y()) + (p.z() - p.z()) == 0.0;
+}
+
 /// rebase_distance_m_ in rest extents (the largest distance of a rest point from the first).
 constexpr double kRebaseDistanceInExtents = 1e3;
 
@@ -198,12 +204,15 @@ std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observe
     throw std::invalid_argument("tracked cloud has " + std::to_string(observed_points.size()) +
                                 " points, the object has " + std::to_string(positions_.size()));
   }
-  std::size_t unobserved = 0;
-  for (std::size_t i = 0; i < positions_.size(); ++i) {
-    if (observed_points[i].allFinite()) {
-      positions_[i] = observed_points[i];
-    } else {
-      ++unobserved;
+  // A camera's cloud is mostly whole: counted first, it is copied without a branch per point.
+  const std::size_t unobserved = static_cast<std::size_t>(
+      std::count_if(observed_points.begin(), observed_points.end(),
+                    [](const Eigen::Vector3d& p) { return !isFinitePoint(p); }));
+  if (unobserved == 0) {
+    std::copy(observed_points.begin(), observed_points.end(), positions_.begin());
+  } else {
+    for (std::size_t i = 0; i < positions_.size(); ++i) {
+      if (isFinitePoint(observed_points[i])) positions_[i] = observed_points[i];
     }
   }
   const auto* fill_in = unobserved > 0 ? &observed_points : nullptr;
@@ -231,8 +240,18 @@ Eigen::Vector3d ShapeMatchingBody::meanVelocity() const {
 
 template <DeformationMode Mode>
 void ShapeMatchingBody::sumCurrentState() {
+  constexpr auto kAll = detail::MomentTerms::kMomentumAndSpin;
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    cluster_sums_[k] = detail::clusterSums<kFeatureCount<Mode>>(
+    cluster_sums_[k] = detail::clusterSums<kFeatureCount<Mode>, kAll>(
+        clusters_[k], point_mass_kg_, positions_, velocities_, deformations_[k].center_of_mass,
+        vector_width_);
+  }
+}
+
+template <DeformationMode Mode>
+void ShapeMatchingBody::sumStoppedState() {
+  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+    cluster_sums_[k] = detail::clusterSums<kFeatureCount<Mode>, detail::MomentTerms::kAtRest>(
         clusters_[k], point_mass_kg_, positions_, velocities_, deformations_[k].center_of_mass,
         vector_width_);
   }
@@ -242,19 +261,20 @@ template <DeformationMode Mode>
 void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* observed) {
   constexpr int K = kFeatureCount<Mode>;
   const auto seen = [observed](std::uint32_t i) {
-    return observed == nullptr || (*observed)[i].allFinite();
+    return observed == nullptr || isFinitePoint((*observed)[i]);
   };
   for (auto& v : velocities_) v.setZero();
-  sumCurrentState<Mode>();
+  sumStoppedState<Mode>();
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
-    if (std::all_of(cluster.points.begin(), cluster.points.end(), seen)) {
+    if (observed == nullptr || std::all_of(cluster.points.begin(), cluster.points.end(), seen)) {
       // After absurd input the carried state would pass its damage on: start as fresh.
       const Eigen::Vector3d shift = cluster_sums_[k].offset / cluster.total_weight_kg;
       if (!detail::carriedStateFits(deformations_[k], shift, rebase_distance_m_)) {
         deformations_[k] = fresh_deformations_[k];
-        cluster_sums_[k] = detail::clusterSums<K>(cluster, point_mass_kg_, positions_, velocities_,
-                                                  deformations_[k].center_of_mass, vector_width_);
+        cluster_sums_[k] = detail::clusterSums<K, detail::MomentTerms::kAtRest>(
+            cluster, point_mass_kg_, positions_, velocities_, deformations_[k].center_of_mass,
+            vector_width_);
       }
       detail::registerCluster<Mode>(cluster, cluster_sums_[k], deformations_[k]);
     } else {
@@ -282,7 +302,7 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
       goal_sums_[i].setZero();
     }
     // The filled-in points moved: the sums must describe the positions now held.
-    sumCurrentState<Mode>();
+    sumStoppedState<Mode>();
   }
   detail::measureFitResiduals<Mode>(clusters_, positions_, vector_width_, deformations_);
 }

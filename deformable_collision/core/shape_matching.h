@@ -205,6 +205,9 @@ class ShapeMatchingBody {
   void registerPositions(const std::vector<Eigen::Vector3d>* observed);
   template <DeformationMode Mode>
   void sumCurrentState();
+  /// sumCurrentState once every velocity is zero, which it does not read.
+  template <DeformationMode Mode>
+  void sumStoppedState();
   bool validateDisplacements(const std::vector<PointDisplacement>& displacements);
   const std::vector<PointDisplacement>& mergeRepeatedPoints(
       const std::vector<PointDisplacement>& displacements);

@@ -129,7 +129,7 @@ struct WideMoments {
   }
 
   /// PartialMoments::addLanes for four slots, into parts 4 h to 4 h + 3.
-  template <bool Weighted, bool WithSpin>
+  template <bool Weighted, MomentTerms Terms>
   __attribute__((target("avx2"))) void add(int h, __m256d w, const __m256d (&p)[3],
                                            const __m256d (&v)[3], const __m256d (&f)[K]) {
     __m256d wp[3];
@@ -141,15 +141,19 @@ struct WideMoments {
             _mm256_add_pd(offset_features[r][c][h], _mm256_mul_pd(wp[r], f[c]));
       }
     }
-    for (int r = 0; r < 3; ++r) {
-      momentum[r][h] = _mm256_add_pd(momentum[r][h], Weighted ? _mm256_mul_pd(w, v[r]) : v[r]);
+    if constexpr (Terms != MomentTerms::kAtRest) {
+      for (int r = 0; r < 3; ++r) {
+        momentum[r][h] = _mm256_add_pd(momentum[r][h], Weighted ? _mm256_mul_pd(w, v[r]) : v[r]);
+      }
     }
-    if constexpr (WithSpin) {
+    if constexpr (Terms == MomentTerms::kMomentumAndSpin) {
       for (int r = 0; r < 3; ++r) {
         const __m256d spin = crossComponent(r, p, v);
         angular_momentum[r][h] =
             _mm256_add_pd(angular_momentum[r][h], Weighted ? _mm256_mul_pd(w, spin) : spin);
       }
+    }
+    if constexpr (Terms != MomentTerms::kMomentum) {
       for (int e = 0; e < 6; ++e) {
         second_moment[e][h] = _mm256_add_pd(second_moment[e][h],
                                             _mm256_mul_pd(wp[kUpperRow[e]], p[kUpperColumn[e]]));
@@ -176,7 +180,7 @@ struct WideMoments {
 
 }  // namespace
 
-template <int K, bool WithSpin>
+template <int K, MomentTerms Terms>
 __attribute__((target("avx2"))) std::size_t accumulateAvx2(
     const Cluster& cluster, std::size_t begin, std::size_t end, const double* weights,
     const Eigen::Vector3d* positions, const Eigen::Vector3d* velocities,
@@ -189,15 +193,15 @@ __attribute__((target("avx2"))) std::size_t accumulateAvx2(
       __m256d f[K];
       wideFeatures<K>(cluster, slot, f);
       __m256d p[3];
-      __m256d v[3];
+      __m256d v[3] = {};
       loadPoints(cluster, slot, positions->data(), p);
-      loadPoints(cluster, slot, velocities->data(), v);
+      if constexpr (Terms != MomentTerms::kAtRest) loadPoints(cluster, slot, velocities->data(), v);
       for (int r = 0; r < 3; ++r) p[r] = _mm256_sub_pd(p[r], _mm256_set1_pd(reference[r]));
       if (weights != nullptr) {
-        moments.template add<true, WithSpin>(h, _mm256_loadu_pd(weights + (slot - begin)), p, v,
+        moments.template add<true, Terms>(h, _mm256_loadu_pd(weights + (slot - begin)), p, v,
                                              f);
       } else {
-        moments.template add<false, WithSpin>(h, _mm256_setzero_pd(), p, v, f);
+        moments.template add<false, Terms>(h, _mm256_setzero_pd(), p, v, f);
       }
     }
   }
@@ -250,7 +254,7 @@ __attribute__((target("avx2"))) std::size_t moveExclusiveAvx2(
       // A cluster holds a point once: the four slots write four different points.
       scatterPoints(cluster, slot, x, xs);
       scatterPoints(cluster, slot, v, vs);
-      moments.template add<false, Damped>(h, _mm256_setzero_pd(), p, v, wide.features);
+      moments.template add<false, kStepTerms<Damped>>(h, _mm256_setzero_pd(), p, v, wide.features);
     }
   }
   moments.storeTo(sums);
@@ -297,20 +301,27 @@ __attribute__((target("avx2"))) std::pair<double, std::size_t> largestSquaredGoa
 
 DEFORMABLE_COLLISION_END_WIDE_KERNELS
 
-// The kernels for every feature count and flag the body uses.
-#define DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(K, FLAG)                                      \
-  template std::size_t accumulateAvx2<K, FLAG>(                                                \
+// The kernels for every feature count, set of terms and flag the body uses.
+#define DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, TERMS)                                          \
+  template std::size_t accumulateAvx2<K, MomentTerms::TERMS>(                                  \
       const Cluster&, std::size_t, std::size_t, const double*, const Eigen::Vector3d*,         \
-      const Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);                      \
-  template std::size_t moveExclusiveAvx2<K, FLAG>(const GoalKernel<K>, const Cluster&,         \
-                                                  const StepMotion, Eigen::Vector3d*,          \
-                                                  Eigen::Vector3d*, const Eigen::Vector3d,     \
-                                                  PartialMoments<K>&);
-DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(3, false)
-DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(3, true)
-DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(9, false)
-DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(9, true)
+      const Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);
+#define DEFORMABLE_COLLISION_AVX2_MOVE(K, DAMPED)                                               \
+  template std::size_t moveExclusiveAvx2<K, DAMPED>(const GoalKernel<K>, const Cluster&,       \
+                                                    const StepMotion, Eigen::Vector3d*,        \
+                                                    Eigen::Vector3d*, const Eigen::Vector3d,   \
+                                                    PartialMoments<K>&);
+#define DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(K)                                             \
+  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kMomentum)                                            \
+  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kMomentumAndSpin)                                     \
+  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kAtRest)                                              \
+  DEFORMABLE_COLLISION_AVX2_MOVE(K, false)                                                      \
+  DEFORMABLE_COLLISION_AVX2_MOVE(K, true)
+DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(3)
+DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(9)
 #undef DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING
+#undef DEFORMABLE_COLLISION_AVX2_MOVE
+#undef DEFORMABLE_COLLISION_AVX2_ACCUMULATE
 template std::size_t addSharedGoalsAvx2<3>(const GoalKernel<3>, const Cluster&, Eigen::Vector3d*);
 template std::size_t addSharedGoalsAvx2<9>(const GoalKernel<9>, const Cluster&, Eigen::Vector3d*);
 template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx2<3>(

@@ -78,6 +78,20 @@ struct Moments {
   double second_moment[3][3] = {};
 };
 
+/// What a pass over slots sums besides the offsets and their products with the features.
+enum class MomentTerms {
+  kMomentum,         ///< The momentum: what the undamped step needs.
+  kMomentumAndSpin,  ///< The momentum, angular momentum and second moment: all of ClusterSums.
+  /// The second moment; every velocity is zero and none is read, so the momenta stay zero:
+  /// a fit to observed points, which stops them, reads the velocities for nothing.
+  kAtRest,
+};
+
+/// The terms the step sums: only the damping needs the spin.
+template <bool Damped>
+inline constexpr MomentTerms kStepTerms =
+    Damped ? MomentTerms::kMomentumAndSpin : MomentTerms::kMomentum;
+
 /// The rows and columns of the second moment's upper triangle; the moment is symmetric.
 constexpr int kUpperRow[6] = {0, 0, 0, 1, 1, 2};
 constexpr int kUpperColumn[6] = {0, 1, 2, 1, 2, 2};
@@ -98,13 +112,13 @@ struct SlotLanes {
   double v[3][kParts];
   double f[K][kParts];
 
-  /// Lane n: a slot's features, and its point at x with velocity u.
+  /// Lane n: a slot's features, and its point at x with velocity u (null: not read).
   void set(int n, const double (&features)[K], const double* x, const double* u,
            const Eigen::Vector3d& reference) {
     for (int c = 0; c < K; ++c) f[c][n] = features[c];
     for (int r = 0; r < 3; ++r) {
       p[r][n] = x[r] - reference[r];
-      v[r][n] = u[r];
+      if (u != nullptr) v[r][n] = u[r];
     }
   }
 };
@@ -120,9 +134,10 @@ struct PartialMoments {
   double angular_momentum[3][kParts] = {};
   double second_moment[6][kParts] = {};  ///< The upper triangle, see kUpperRow.
 
-  /// Adds the first `lanes` of a block of slots, lane n to part n. The spin terms feed only
-  /// the damping. Unweighted, the weights are not read: a weight of 1 would multiply nothing.
-  template <bool Weighted, bool WithSpin>
+  /// Adds the first `lanes` of a block of slots, lane n to part n: `Terms` of them. The spin
+  /// terms feed only the damping. Unweighted, the weights are not read: a weight of 1 would
+  /// multiply nothing.
+  template <bool Weighted, MomentTerms Terms>
   void addLanes(int lanes, const SlotLanes<K>& slots) {
     const auto& w = slots.w;
     const auto& p = slots.p;
@@ -138,10 +153,12 @@ struct PartialMoments {
         for (int n = 0; n < lanes; ++n) offset_features[r][c][n] += wp[r][n] * f[c][n];
       }
     }
-    for (int r = 0; r < 3; ++r) {
-      for (int n = 0; n < lanes; ++n) momentum[r][n] += Weighted ? w[n] * v[r][n] : v[r][n];
+    if constexpr (Terms != MomentTerms::kAtRest) {
+      for (int r = 0; r < 3; ++r) {
+        for (int n = 0; n < lanes; ++n) momentum[r][n] += Weighted ? w[n] * v[r][n] : v[r][n];
+      }
     }
-    if constexpr (WithSpin) {
+    if constexpr (Terms == MomentTerms::kMomentumAndSpin) {
       for (int r = 0; r < 3; ++r) {
         const int a = (r + 1) % 3;
         const int b = (r + 2) % 3;
@@ -150,6 +167,8 @@ struct PartialMoments {
           angular_momentum[r][n] += Weighted ? w[n] * spin : spin;
         }
       }
+    }
+    if constexpr (Terms != MomentTerms::kMomentum) {
       for (int e = 0; e < 6; ++e) {
         for (int n = 0; n < lanes; ++n) {
           second_moment[e][n] += wp[kUpperRow[e]][n] * p[kUpperColumn[e]][n];
@@ -242,16 +261,17 @@ struct StepMotion {
   }
 };
 
-/// Sums slots [begin, end) of `cluster`, eight at a time with the wide vectors if asked;
-/// `weights` is null for exclusive slots, whose weight the caller applies.
-template <int K, bool WithSpin>
+/// Sums `Terms` of slots [begin, end) of `cluster`, eight at a time with the wide vectors if
+/// asked; `weights` is null for exclusive slots, whose weight the caller applies.
+template <int K, MomentTerms Terms>
 Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end,
                       const double* weights, const std::vector<Eigen::Vector3d>& positions,
                       const std::vector<Eigen::Vector3d>& velocities,
                       const Eigen::Vector3d& reference, VectorWidth width);
 
-/// The moments of the whole cluster, with spin, as stored sums about `reference`.
-template <int K>
+/// The moments of the whole cluster as stored sums about `reference`: all of them, or at
+/// rest (MomentTerms::kAtRest: the velocities are zero and not read).
+template <int K, MomentTerms Terms>
 ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
                         const std::vector<Eigen::Vector3d>& positions,
                         const std::vector<Eigen::Vector3d>& velocities,

@@ -6,7 +6,7 @@
 
 namespace deformable_collision::detail {
 
-template <int K, bool WithSpin>
+template <int K, MomentTerms Terms>
 Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end,
                       const double* weights, const std::vector<Eigen::Vector3d>& positions,
                       const std::vector<Eigen::Vector3d>& velocities,
@@ -15,10 +15,10 @@ Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end
   std::size_t j = begin;
 #if defined(__GNUC__) && defined(__x86_64__)
   if (width == VectorWidth::kAvx512) {
-    j = accumulateAvx512<K, WithSpin>(cluster, begin, end, weights, positions.data(),
+    j = accumulateAvx512<K, Terms>(cluster, begin, end, weights, positions.data(),
                                       velocities.data(), reference, sums);
   } else if (width == VectorWidth::kAvx2) {
-    j = accumulateAvx2<K, WithSpin>(cluster, begin, end, weights, positions.data(),
+    j = accumulateAvx2<K, Terms>(cluster, begin, end, weights, positions.data(),
                                     velocities.data(), reference, sums);
   }
 #endif
@@ -30,27 +30,28 @@ Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end
       const std::uint32_t i = cluster.points[j + n];
       double features[K];
       featureArray<K>(cluster.rest_offsets[j + n], features);
-      slots.set(n, features, positions[i].data(), velocities[i].data(), reference);
+      slots.set(n, features, positions[i].data(),
+                Terms == MomentTerms::kAtRest ? nullptr : velocities[i].data(), reference);
       if (weights != nullptr) slots.w[n] = weights[j + n - begin];
     }
     if (weights != nullptr) {
-      sums.template addLanes<true, WithSpin>(lanes, slots);
+      sums.template addLanes<true, Terms>(lanes, slots);
     } else {
-      sums.template addLanes<false, WithSpin>(lanes, slots);
+      sums.template addLanes<false, Terms>(lanes, slots);
     }
   }
   return sums.total();
 }
 
-template <int K>
+template <int K, MomentTerms Terms>
 ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
                         const std::vector<Eigen::Vector3d>& positions,
                         const std::vector<Eigen::Vector3d>& velocities,
                         const Eigen::Vector3d& reference, VectorWidth width) {
   // Exclusive slots are summed unweighted and scaled by the point mass once.
-  const Moments<K> exclusive = accumulate<K, true>(cluster, 0, cluster.exclusive_count, nullptr,
+  const Moments<K> exclusive = accumulate<K, Terms>(cluster, 0, cluster.exclusive_count, nullptr,
                                                    positions, velocities, reference, width);
-  const Moments<K> shared = accumulate<K, true>(
+  const Moments<K> shared = accumulate<K, Terms>(
       cluster, cluster.exclusive_count, cluster.points.size(), cluster.shared_weights_kg.data(),
       positions, velocities, reference, width);
   ClusterSums sums;
@@ -72,22 +73,25 @@ ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
   return sums;
 }
 
-// The sums for every feature count and flag the body uses.
+// The sums for every feature count and set of terms the body uses.
+#define DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, TERMS)                               \
+  template Moments<K> accumulate<K, MomentTerms::TERMS>(                                       \
+      const Cluster&, std::size_t, std::size_t, const double*,                                  \
+      const std::vector<Eigen::Vector3d>&, const std::vector<Eigen::Vector3d>&,                 \
+      const Eigen::Vector3d&, VectorWidth);
+#define DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, TERMS)                             \
+  template ClusterSums clusterSums<K, MomentTerms::TERMS>(                                     \
+      const Cluster&, double, const std::vector<Eigen::Vector3d>&,                              \
+      const std::vector<Eigen::Vector3d>&, const Eigen::Vector3d&, VectorWidth);
 #define DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(K)                                          \
-  template Moments<K> accumulate<K, false>(                                                     \
-      const Cluster&, std::size_t, std::size_t, const double*,                                  \
-      const std::vector<Eigen::Vector3d>&, const std::vector<Eigen::Vector3d>&,                 \
-      const Eigen::Vector3d&, VectorWidth);                                                     \
-  template Moments<K> accumulate<K, true>(                                                      \
-      const Cluster&, std::size_t, std::size_t, const double*,                                  \
-      const std::vector<Eigen::Vector3d>&, const std::vector<Eigen::Vector3d>&,                 \
-      const Eigen::Vector3d&, VectorWidth);                                                     \
-  template ClusterSums clusterSums<K>(const Cluster&, double,                                   \
-                                      const std::vector<Eigen::Vector3d>&,                      \
-                                      const std::vector<Eigen::Vector3d>&,                      \
-                                      const Eigen::Vector3d&, VectorWidth);
+  DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, kMomentum)                                  \
+  DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, kMomentumAndSpin)                           \
+  DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, kMomentumAndSpin)                         \
+  DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, kAtRest)
 DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(3)
 DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(9)
 #undef DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS
+#undef DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS
+#undef DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE
 
 }  // namespace deformable_collision::detail

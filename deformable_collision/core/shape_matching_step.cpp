@@ -18,6 +18,7 @@ using detail::featureArray;
 using detail::GoalKernel;
 using detail::kFeatureCount;
 using detail::kParts;
+using detail::kStepTerms;
 using detail::PartialMoments;
 using detail::SlotLanes;
 using detail::StepMotion;
@@ -106,7 +107,7 @@ PartialMoments<K> moveExclusivePoints(const GoalKernel<K> kernel, const Cluster&
       motion.move<Damped>(goal, x, u);
       slots.set(n, features, x, u, reference);
     }
-    moments.template addLanes<false, Damped>(lanes, slots);
+    moments.template addLanes<false, kStepTerms<Damped>>(lanes, slots);
   }
   return moments;
 }
@@ -203,7 +204,7 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
     if (cluster.exclusive_count < cluster.points.size()) {
-      detail::addScaled(detail::accumulate<K, Damped>(
+      detail::addScaled(detail::accumulate<K, kStepTerms<Damped>>(
                             cluster, cluster.exclusive_count, cluster.points.size(),
                             cluster.shared_weights_kg.data(), positions_, velocities_,
                             cluster_sums_[k].reference, vector_width_),

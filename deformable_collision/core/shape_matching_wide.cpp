@@ -96,7 +96,7 @@ struct WideMoments {
   }
 
   /// PartialMoments::addLanes for eight slots, one per part.
-  template <bool Weighted, bool WithSpin>
+  template <bool Weighted, MomentTerms Terms>
   __attribute__((target("avx512f"))) void add(__m512d w, const __m512d (&p)[3],
                                                const __m512d (&v)[3], const __m512d (&f)[K]) {
     __m512d wp[3];
@@ -107,15 +107,19 @@ struct WideMoments {
         offset_features[r][c] = _mm512_add_pd(offset_features[r][c], _mm512_mul_pd(wp[r], f[c]));
       }
     }
-    for (int r = 0; r < 3; ++r) {
-      momentum[r] = _mm512_add_pd(momentum[r], Weighted ? _mm512_mul_pd(w, v[r]) : v[r]);
+    if constexpr (Terms != MomentTerms::kAtRest) {
+      for (int r = 0; r < 3; ++r) {
+        momentum[r] = _mm512_add_pd(momentum[r], Weighted ? _mm512_mul_pd(w, v[r]) : v[r]);
+      }
     }
-    if constexpr (WithSpin) {
+    if constexpr (Terms == MomentTerms::kMomentumAndSpin) {
       for (int r = 0; r < 3; ++r) {
         const __m512d spin = crossComponent(r, p, v);
         angular_momentum[r] =
             _mm512_add_pd(angular_momentum[r], Weighted ? _mm512_mul_pd(w, spin) : spin);
       }
+    }
+    if constexpr (Terms != MomentTerms::kMomentum) {
       for (int e = 0; e < 6; ++e) {
         second_moment[e] = _mm512_add_pd(second_moment[e],
                                          _mm512_mul_pd(wp[kUpperRow[e]], p[kUpperColumn[e]]));
@@ -139,7 +143,7 @@ struct WideMoments {
 
 }  // namespace
 
-template <int K, bool WithSpin>
+template <int K, MomentTerms Terms>
 __attribute__((target("avx512f"))) std::size_t accumulateAvx512(
     const Cluster& cluster, std::size_t begin, std::size_t end, const double* weights,
     const Eigen::Vector3d* positions, const Eigen::Vector3d* velocities,
@@ -151,16 +155,18 @@ __attribute__((target("avx512f"))) std::size_t accumulateAvx512(
     __m512d f[K];
     wideFeatures<K>(cluster, slot, f);
     __m512d p[3];
-    __m512d v[3];
+    __m512d v[3] = {};
     for (int r = 0; r < 3; ++r) {
       const __m512d x = _mm512_i32gather_pd(offsets, positions->data() + r, 8);
       p[r] = _mm512_sub_pd(x, _mm512_set1_pd(reference[r]));
-      v[r] = _mm512_i32gather_pd(offsets, velocities->data() + r, 8);
+      if constexpr (Terms != MomentTerms::kAtRest) {
+        v[r] = _mm512_i32gather_pd(offsets, velocities->data() + r, 8);
+      }
     }
     if (weights != nullptr) {
-      moments.template add<true, WithSpin>(_mm512_loadu_pd(weights + (slot - begin)), p, v, f);
+      moments.template add<true, Terms>(_mm512_loadu_pd(weights + (slot - begin)), p, v, f);
     } else {
-      moments.template add<false, WithSpin>(_mm512_setzero_pd(), p, v, f);
+      moments.template add<false, Terms>(_mm512_setzero_pd(), p, v, f);
     }
   }
   moments.storeTo(sums);
@@ -212,7 +218,7 @@ __attribute__((target("avx512f"))) std::size_t moveExclusiveAvx512(
       _mm512_i32scatter_pd(vs + r, wide.point_offsets, v[r], 8);
       p[r] = _mm512_sub_pd(x[r], _mm512_set1_pd(reference[r]));
     }
-    moments.template add<false, Damped>(_mm512_setzero_pd(), p, v, wide.features);
+    moments.template add<false, kStepTerms<Damped>>(_mm512_setzero_pd(), p, v, wide.features);
   }
   moments.storeTo(sums);
   return slot;
@@ -256,19 +262,26 @@ __attribute__((target("avx512f"))) std::pair<double, std::size_t> largestSquared
 
 DEFORMABLE_COLLISION_END_WIDE_KERNELS
 
-// The kernels for every feature count and flag the body uses.
-#define DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(K, FLAG)                                      \
-  template std::size_t accumulateAvx512<K, FLAG>(                                              \
+// The kernels for every feature count, set of terms and flag the body uses.
+#define DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, TERMS)                                          \
+  template std::size_t accumulateAvx512<K, MomentTerms::TERMS>(                                \
       const Cluster&, std::size_t, std::size_t, const double*, const Eigen::Vector3d*,         \
-      const Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);                      \
-  template std::size_t moveExclusiveAvx512<K, FLAG>(                                           \
+      const Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);
+#define DEFORMABLE_COLLISION_WIDE_MOVE(K, DAMPED)                                               \
+  template std::size_t moveExclusiveAvx512<K, DAMPED>(                                         \
       const GoalKernel<K>, const Cluster&, const StepMotion, Eigen::Vector3d*,                 \
       Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);
-DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(3, false)
-DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(3, true)
-DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(9, false)
-DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(9, true)
+#define DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(K)                                             \
+  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kMomentum)                                            \
+  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kMomentumAndSpin)                                     \
+  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kAtRest)                                              \
+  DEFORMABLE_COLLISION_WIDE_MOVE(K, false)                                                      \
+  DEFORMABLE_COLLISION_WIDE_MOVE(K, true)
+DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(3)
+DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(9)
 #undef DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING
+#undef DEFORMABLE_COLLISION_WIDE_MOVE
+#undef DEFORMABLE_COLLISION_WIDE_ACCUMULATE
 template std::size_t addSharedGoalsAvx512<3>(const GoalKernel<3>, const Cluster&, Eigen::Vector3d*);
 template std::size_t addSharedGoalsAvx512<9>(const GoalKernel<9>, const Cluster&, Eigen::Vector3d*);
 template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512<3>(

@@ -24,7 +24,7 @@ constexpr std::size_t kMostWidePoints = std::size_t{1} << 29;
 
 /// The first slots of [begin, end) into `sums`, which hold nothing yet; `weights` as for
 /// accumulate.
-template <int K, bool WithSpin>
+template <int K, MomentTerms Terms>
 __attribute__((target("avx512f"))) std::size_t accumulateAvx512(
     const Cluster& cluster, std::size_t begin, std::size_t end, const double* weights,
     const Eigen::Vector3d* positions, const Eigen::Vector3d* velocities,
@@ -50,7 +50,7 @@ __attribute__((target("avx512f"))) std::pair<double, std::size_t> largestSquared
     const GoalKernel<K> kernel, const Cluster& cluster, const Eigen::Vector3d* positions);
 
 /// accumulateAvx512 on four lanes.
-template <int K, bool WithSpin>
+template <int K, MomentTerms Terms>
 __attribute__((target("avx2"))) std::size_t accumulateAvx2(
     const Cluster& cluster, std::size_t begin, std::size_t end, const double* weights,
     const Eigen::Vector3d* positions, const Eigen::Vector3d* velocities,
