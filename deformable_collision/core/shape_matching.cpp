@@ -228,6 +228,7 @@ void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positio
 void ShapeMatchingBody::setVelocities(const std::vector<Eigen::Vector3d>& velocities) {
   requireOnePerPoint(velocities, velocities_.size(), "velocity", "velocities");
   velocities_ = velocities;
+  stopped_ = false;
   withMode(config_.mode, [&](auto mode) { sumCurrentState<decltype(mode)::value>(); });
 }
 
@@ -263,7 +264,10 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
   const auto seen = [observed](std::uint32_t i) {
     return observed == nullptr || isFinitePoint((*observed)[i]);
   };
-  for (auto& v : velocities_) v.setZero();
+  if (!stopped_) {
+    for (auto& v : velocities_) v.setZero();
+    stopped_ = true;
+  }
   sumStoppedState<Mode>();
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];

@@ -223,6 +223,9 @@ class ShapeMatchingBody {
   std::vector<Eigen::Vector3d> rest_positions_;
   std::vector<Eigen::Vector3d> positions_;
   std::vector<Eigen::Vector3d> velocities_;
+  /// Every velocity is zero, as the constructor and a registration leave them: a tracked
+  /// object's registrations then write none (false after anything that may move a point).
+  bool stopped_ = true;
   std::vector<Cluster> clusters_;
   std::vector<ClusterDeformation> deformations_;
   /// The clusters' state once the constructor has registered the rest shape: where a

@@ -155,6 +155,7 @@ void ShapeMatchingBody::step(double dt_s, const Eigen::Vector3d& acceleration_mp
     throw std::invalid_argument("external acceleration is not finite");
   }
   const bool damped = config_.damping > 0.0;
+  stopped_ = false;
   detail::withMode(config_.mode, [&](auto mode) {
     constexpr DeformationMode kMode = decltype(mode)::value;
     damped ? simulate<kMode, true>(dt_s, acceleration_mps2)
@@ -233,6 +234,7 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
   // the arguments would otherwise be read again for every point.
   Eigen::Vector3d* positions = positions_.data();
   Eigen::Vector3d* velocities = velocities_.data();
+  stopped_ = false;
   const Eigen::Vector3d offset = offset_m;
   const Eigen::Vector3d change = velocity_change_mps;
   const Eigen::Vector3d spin = spin_change_radps;
@@ -281,6 +283,7 @@ void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& dis
   const bool repeats = validateDisplacements(displacements);
   const std::vector<PointDisplacement>& applied =
       repeats ? mergeRepeatedPoints(displacements) : displacements;
+  stopped_ = false;
   detail::withMode(config_.mode,
                    [&](auto mode) { applyDisplacements<decltype(mode)::value>(applied); });
 }

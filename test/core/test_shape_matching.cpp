@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -698,6 +699,40 @@ TEST(Track, UnobservedPointsFollowTheFit) {
   EXPECT_EQ(body.track(observed), (observed.size() + 6) / 7);
   for (std::size_t i = 0; i < truth.size(); ++i) {
     EXPECT_LT((body.positions()[i] - truth[i]).norm(), 1e-9) << "point " << i;
+  }
+}
+
+struct MotionCase {
+  const char* name;
+  std::function<void(ShapeMatchingBody&)> move;
+};
+
+TEST(Track, StopsThePointsWhateverMovedThemSinceTheLastRegistration) {
+  const MotionCase cases[] = {
+      {"step", [](ShapeMatchingBody& b) { b.step(0.01, Eigen::Vector3d(0, 0, -9.81)); }},
+      {"move_rigidly", [](ShapeMatchingBody& b) { b.moveRigidly({0.01, 0, 0}, {0.5, 0, 0}); }},
+      {"turn",
+       [](ShapeMatchingBody& b) {
+         b.moveRigidly({0, 0, 0}, {0, 0, 0}, {0, 0, 2.0}, Eigen::Vector3d::Zero());
+       }},
+      {"displace_points",
+       [](ShapeMatchingBody& b) { b.displacePoints({{3, {0.001, 0, 0}, {0.2, 0, 0}}}); }},
+      {"set_velocities",
+       [](ShapeMatchingBody& b) { b.setVelocities(Points(b.positions().size(), {0, 0.3, 0})); }},
+  };
+  const Points rest = sampleBox(120, {0.3, 0.2, 0.1}, 21);
+  for (const MotionCase& c : cases) {
+    ShapeMatchingBody body(rest, configFor(DeformationMode::kQuadratic, 2));
+    body.track(rest);
+    c.move(body);
+    const bool moving = std::any_of(body.velocities().begin(), body.velocities().end(),
+                                    [](const Eigen::Vector3d& v) { return !v.isZero(0.0); });
+    ASSERT_TRUE(moving) << c.name << " moved no point: the case tests nothing";
+    body.track(body.positions());
+    for (std::size_t i = 0; i < body.velocities().size(); ++i) {
+      ASSERT_TRUE(body.velocities()[i].isZero(0.0)) << c.name << ", point " << i;
+    }
+    EXPECT_TRUE(body.meanVelocity().isZero(0.0)) << c.name;
   }
 }
 
