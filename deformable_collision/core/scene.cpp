@@ -147,15 +147,28 @@ void Scene::setVelocities(std::size_t object, const std::vector<Eigen::Vector3d>
 }
 
 std::size_t Scene::observe(std::size_t object, const std::vector<Eigen::Vector3d>& points_m) {
+  Object& o = trackedObject(object);
+  const std::size_t unobserved = o.body.track(points_m);
+  o.stale = true;
+  ++stats_.objects_moved;
+  return unobserved;
+}
+
+std::size_t Scene::observeSwapping(std::size_t object, std::vector<Eigen::Vector3d>& points_m) {
+  Object& o = trackedObject(object);
+  const std::size_t unobserved = o.body.trackSwapping(points_m);
+  o.stale = true;
+  ++stats_.objects_moved;
+  return unobserved;
+}
+
+Scene::Object& Scene::trackedObject(std::size_t object) {
   Object& o = *objects_.at(object);
   if (o.config.kind != ObjectKind::kTracked) {
     throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
                                 ", only tracked objects take observations");
   }
-  const std::size_t unobserved = o.body.track(points_m);
-  o.stale = true;
-  ++stats_.objects_moved;
-  return unobserved;
+  return o;
 }
 
 void Scene::cycle() {

@@ -126,6 +126,11 @@ class Scene {
   /// @throw std::invalid_argument if the object is not tracked or the size differs.
   std::size_t observe(std::size_t object, const std::vector<Eigen::Vector3d>& points_m);
 
+  /// observe(), but a cloud without holes is swapped in instead of copied, and `points_m`
+  /// gets the object's previous positions (see ShapeMatchingBody::trackSwapping).
+  /// @throw std::invalid_argument if the object is not tracked or the size differs.
+  std::size_t observeSwapping(std::size_t object, std::vector<Eigen::Vector3d>& points_m);
+
   /// Fits a tracked object's model to an unordered, partial, noisy cloud of it (any size
   /// and order, non-finite points skipped), seen from `viewpoint_m` if known (the camera's
   /// position; see CloudRegistration). A cloud that does not show the object leaves it
@@ -199,6 +204,9 @@ class Scene {
   /// An object with its hierarchy (and rest planes, if fixed); names the object if it throws.
   std::unique_ptr<Object> makeObject(const ObjectConfig& config,
                                      std::vector<Eigen::Vector3d> rest_points_m) const;
+  /// @throw std::out_of_range if there is no such object, std::invalid_argument if it is
+  /// not tracked.
+  Object& trackedObject(std::size_t object);
   void refreshStaleTrees();
 
   // Registration of a tracked object's clouds (scene_registration.cpp).

@@ -200,24 +200,50 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
 }
 
 std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observed_points) {
+  const std::size_t unobserved = countUnobserved(observed_points);
+  copyObserved(observed_points, unobserved);
+  registerObserved(observed_points, unobserved);
+  return unobserved;
+}
+
+std::size_t ShapeMatchingBody::trackSwapping(std::vector<Eigen::Vector3d>& observed_points) {
+  const std::size_t unobserved = countUnobserved(observed_points);
+  if (unobserved == 0) {
+    positions_.swap(observed_points);
+  } else {
+    copyObserved(observed_points, unobserved);
+  }
+  registerObserved(observed_points, unobserved);
+  return unobserved;
+}
+
+std::size_t ShapeMatchingBody::countUnobserved(
+    const std::vector<Eigen::Vector3d>& observed_points) const {
   if (observed_points.size() != positions_.size()) {
     throw std::invalid_argument("tracked cloud has " + std::to_string(observed_points.size()) +
                                 " points, the object has " + std::to_string(positions_.size()));
   }
-  // A camera's cloud is mostly whole: counted first, it is copied without a branch per point.
-  const std::size_t unobserved = static_cast<std::size_t>(
+  return static_cast<std::size_t>(
       std::count_if(observed_points.begin(), observed_points.end(),
                     [](const Eigen::Vector3d& p) { return !isFinitePoint(p); }));
+}
+
+void ShapeMatchingBody::copyObserved(const std::vector<Eigen::Vector3d>& observed_points,
+                                     std::size_t unobserved) {
+  // A camera's cloud is mostly whole: counted first, it is copied without a branch per point.
   if (unobserved == 0) {
     std::copy(observed_points.begin(), observed_points.end(), positions_.begin());
-  } else {
-    for (std::size_t i = 0; i < positions_.size(); ++i) {
-      if (isFinitePoint(observed_points[i])) positions_[i] = observed_points[i];
-    }
+    return;
   }
+  for (std::size_t i = 0; i < positions_.size(); ++i) {
+    if (isFinitePoint(observed_points[i])) positions_[i] = observed_points[i];
+  }
+}
+
+void ShapeMatchingBody::registerObserved(const std::vector<Eigen::Vector3d>& observed_points,
+                                         std::size_t unobserved) {
   const auto* fill_in = unobserved > 0 ? &observed_points : nullptr;
   withMode(config_.mode, [&](auto mode) { registerPositions<decltype(mode)::value>(fill_in); });
-  return unobserved;
 }
 
 void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positions) {

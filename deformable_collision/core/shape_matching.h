@@ -149,6 +149,12 @@ class ShapeMatchingBody {
   /// @throw std::invalid_argument if the size differs; the state is then unchanged.
   std::size_t track(const std::vector<Eigen::Vector3d>& observed_points);
 
+  /// track(), but a cloud without a non-finite point is swapped in instead of copied:
+  /// `observed_points` then holds the previous positions, a buffer of the same size to read
+  /// the next cloud into. A cloud with holes is copied and left as it was.
+  /// @throw std::invalid_argument if the size differs; the state is then unchanged.
+  std::size_t trackSwapping(std::vector<Eigen::Vector3d>& observed_points);
+
   /// Places the points (a deformed start, a pose) and sets their velocities to zero. The
   /// per-cluster outputs are refreshed by registering the new positions, as track() does.
   /// @throw std::invalid_argument if the size differs or a point is not finite.
@@ -203,6 +209,10 @@ class ShapeMatchingBody {
   void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);
   template <DeformationMode Mode>
   void registerPositions(const std::vector<Eigen::Vector3d>* observed);
+  /// The number of non-finite points of a tracked cloud, whose size it checks.
+  std::size_t countUnobserved(const std::vector<Eigen::Vector3d>& observed_points) const;
+  void copyObserved(const std::vector<Eigen::Vector3d>& observed_points, std::size_t unobserved);
+  void registerObserved(const std::vector<Eigen::Vector3d>& observed_points, std::size_t unobserved);
   template <DeformationMode Mode>
   void sumCurrentState();
   /// sumCurrentState once every velocity is zero, which it does not read.

@@ -212,7 +212,14 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
     if (cloud.points.size() != slot.tracked_cloud_size) {
       throw std::invalid_argument(trackedSizeProblem(cloud.points.size(), slot.tracked_cloud_size));
     }
-    scene_.observe(*slot.index, trackedPoints(slot, cloud.points));
+    std::vector<Eigen::Vector3d>& points = trackedPoints(slot, cloud.points);
+    if (&points == &cloud.points) {
+      // The cloud's own buffer takes the object's previous points: none is copied again.
+      scene_.observeSwapping(*slot.index, points);
+    } else {
+      // The node's one buffer for reordered clouds stays the node's, at its size.
+      scene_.observe(*slot.index, points);
+    }
   }
   if (pose) {
     scene_.setPose(*slot.index, *pose);
@@ -222,8 +229,8 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
   return true;
 }
 
-const std::vector<Eigen::Vector3d>& DeformableCollisionNode::trackedPoints(
-    const ObjectSlot& slot, const std::vector<Eigen::Vector3d>& cloud) {
+std::vector<Eigen::Vector3d>& DeformableCollisionNode::trackedPoints(
+    const ObjectSlot& slot, std::vector<Eigen::Vector3d>& cloud) {
   // A first cloud without holes makes every later one the object's points as they are.
   if (slot.tracked_indices.size() == cloud.size()) return cloud;
   tracked_points_.resize(slot.tracked_indices.size());

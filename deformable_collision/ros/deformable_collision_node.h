@@ -135,9 +135,10 @@ class DeformableCollisionNode {
   void applyTakenClouds();
   /// Whether the cloud changed the object (an ignored object's is left alone).
   bool applyCloud(ObjectSlot& slot, ReadCloud& cloud);
-  /// The points of a tracked object's cloud, in the order of its rest shape.
-  const std::vector<Eigen::Vector3d>& trackedPoints(const ObjectSlot& slot,
-                                                    const std::vector<Eigen::Vector3d>& cloud);
+  /// The points of a tracked object's cloud, in the order of its rest shape: `cloud`
+  /// itself, or a buffer of the node's when the first cloud had holes.
+  std::vector<Eigen::Vector3d>& trackedPoints(const ObjectSlot& slot,
+                                              std::vector<Eigen::Vector3d>& cloud);
   /// Why a tracked object refuses a cloud of `points` points.
   static std::string trackedSizeProblem(std::size_t points, std::size_t first_points);
   /// Points far apart compared with the contact distance let other clouds through: say so.

@@ -680,6 +680,9 @@ TEST(Scene, ObjectsAreCheckedByNameAndKind) {
   }
   EXPECT_THROW(scene.setPose(0, Eigen::Isometry3d::Identity()), std::invalid_argument);
   EXPECT_THROW(scene.observe(0, scene.body(0).positions()), std::invalid_argument);
+  Points not_tracked = scene.body(0).positions();
+  EXPECT_THROW(scene.observeSwapping(0, not_tracked), std::invalid_argument);
+  EXPECT_EQ(not_tracked, scene.body(0).positions());
   EXPECT_FALSE(scene.findObject("nothing").has_value());
   EXPECT_EQ(parseObjectKind("kinematic"), ObjectKind::kKinematic);
   EXPECT_FALSE(parseObjectKind("floating").has_value());
@@ -709,6 +712,15 @@ TEST(Scene, KinematicAndTrackedObjectsFollowTheirInputs) {
   observed[3].x() = std::nan("");
   EXPECT_EQ(scene.observe(t, observed), 1u);
   EXPECT_LT((scene.body(t).positions()[3] - (rest[3] + Eigen::Vector3d(0, 0, 0.5))).norm(), 1e-9);
+
+  // Swapped in, a whole cloud becomes the positions and its buffer the previous ones.
+  const Points previous = scene.body(t).positions();
+  Points whole = rest;
+  for (auto& p : whole) p += Eigen::Vector3d(0.0, 0.1, 0.5);
+  const Points expected = whole;
+  EXPECT_EQ(scene.observeSwapping(t, whole), 0u);
+  EXPECT_EQ(scene.body(t).positions(), expected);
+  EXPECT_EQ(whole, previous);
 }
 
 TEST(Scene, ResetRestShapeReplacesTheShapeOrNothing) {

@@ -736,6 +736,47 @@ TEST(Track, StopsThePointsWhateverMovedThemSinceTheLastRegistration) {
   }
 }
 
+TEST(Track, SwappingInACloudGivesTheSameBitsAsCopyingIt) {
+  const Points rest = sampleBox(300, {0.3, 0.2, 0.1}, 22);
+  for (const bool holes : {false, true}) {
+    ShapeMatchingBody copied(rest, configFor(DeformationMode::kQuadratic, 3));
+    ShapeMatchingBody swapped(rest, configFor(DeformationMode::kQuadratic, 3));
+    for (int frame = 1; frame <= 3; ++frame) {
+      Points cloud = mapped(rest, [frame](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+        return kRotation * p + Eigen::Vector3d(0.01 * frame, 0, 0.02 * p.x() * p.x());
+      });
+      if (holes) cloud[5 * frame].setConstant(std::numeric_limits<double>::quiet_NaN());
+      const Points sent = cloud;
+      const Points previous = swapped.positions();
+      const std::size_t unobserved = copied.track(sent);
+      ASSERT_EQ(swapped.trackSwapping(cloud), unobserved);
+      const std::string when = std::string(holes ? "with holes" : "whole") + ", frame " +
+                               std::to_string(frame);
+      ASSERT_EQ(swapped.positions(), copied.positions()) << when;
+      for (std::size_t k = 0; k < copied.clusterCount(); ++k) {
+        ASSERT_EQ(swapped.deformation(k).transform, copied.deformation(k).transform) << when;
+        ASSERT_EQ(swapped.deformation(k).goal_deviation_bound_m,
+                  copied.deformation(k).goal_deviation_bound_m)
+            << when;
+      }
+      // A cloud with holes is copied and left as sent; a whole one gets the old positions.
+      if (!holes) {
+        ASSERT_EQ(cloud, previous) << when;
+        continue;
+      }
+      for (std::size_t i = 0; i < cloud.size(); ++i) {
+        ASSERT_TRUE(cloud[i] == sent[i] || (cloud[i].hasNaN() && sent[i].hasNaN()))
+            << when << ", point " << i;
+      }
+    }
+  }
+  ShapeMatchingBody body(rest, configFor(DeformationMode::kLinear, 1));
+  Points short_cloud(rest.size() - 1, Eigen::Vector3d::Zero());
+  EXPECT_THROW(body.trackSwapping(short_cloud), std::invalid_argument);
+  EXPECT_EQ(short_cloud.size(), rest.size() - 1);
+  EXPECT_EQ(body.positions(), rest);
+}
+
 TEST(Track, WrongSizeThrowsAndLeavesTheStateAlone) {
   const Points rest = sampleBox(50, {0.3, 0.3, 0.3}, 14);
   ShapeMatchingBody body(rest, configFor(DeformationMode::kLinear, 1));
