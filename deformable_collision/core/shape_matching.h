@@ -212,7 +212,8 @@ class ShapeMatchingBody {
   /// The number of non-finite points of a tracked cloud, whose size it checks.
   std::size_t countUnobserved(const std::vector<Eigen::Vector3d>& observed_points) const;
   void copyObserved(const std::vector<Eigen::Vector3d>& observed_points, std::size_t unobserved);
-  void registerObserved(const std::vector<Eigen::Vector3d>& observed_points, std::size_t unobserved);
+  void registerObserved(const std::vector<Eigen::Vector3d>& observed_points,
+                        std::size_t unobserved);
   template <DeformationMode Mode>
   void sumCurrentState();
   /// sumCurrentState once every velocity is zero, which it does not read.

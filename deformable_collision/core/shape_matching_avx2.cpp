@@ -198,8 +198,7 @@ __attribute__((target("avx2"))) std::size_t accumulateAvx2(
       if constexpr (Terms != MomentTerms::kAtRest) loadPoints(cluster, slot, velocities->data(), v);
       for (int r = 0; r < 3; ++r) p[r] = _mm256_sub_pd(p[r], _mm256_set1_pd(reference[r]));
       if (weights != nullptr) {
-        moments.template add<true, Terms>(h, _mm256_loadu_pd(weights + (slot - begin)), p, v,
-                                             f);
+        moments.template add<true, Terms>(h, _mm256_loadu_pd(weights + (slot - begin)), p, v, f);
       } else {
         moments.template add<false, Terms>(h, _mm256_setzero_pd(), p, v, f);
       }

@@ -102,7 +102,8 @@ void readCheckedPoints(const sensor_msgs::PointCloud2& cloud, ReadPoint read_poi
   for (std::uint32_t row = 0; row < cloud.height; ++row) {
     const std::uint8_t* row_start = cloud.data.data() + static_cast<std::size_t>(row) * cloud.row_step;
     for (std::uint32_t column = 0; column < cloud.width; ++column) {
-      Eigen::Vector3d p = read_point(row_start + static_cast<std::size_t>(column) * cloud.point_step);
+      const std::size_t offset = static_cast<std::size_t>(column) * cloud.point_step;
+      Eigen::Vector3d p = read_point(row_start + offset);
       if (!p.allFinite()) {
         ++result.non_finite;
         if (policy == NonFinitePoints::kDrop) continue;
