@@ -184,6 +184,10 @@ template <VectorWidth Width>
   addLeafContact(a, leaf_a, points_a, b, leaf_b, points_b, pair, contact_distance_m, contacts);
 }
 
+[[gnu::always_inline]] inline Sphere leafSphere(const LeafSpheres& spheres, std::uint32_t leaf) {
+  return {Eigen::Vector3d(spheres.x[leaf], spheres.y[leaf], spheres.z[leaf]), spheres.radius[leaf]};
+}
+
 /// Leaves under a node at which the descent to the leaves stops: their spheres are then
 /// tested all against all, eight at a time, instead of pair by pair down the last levels.
 constexpr std::uint32_t kBucketLeaves = SphereTree::kBucketLeaves;
@@ -195,6 +199,7 @@ template <VectorWidth Width>
 [[gnu::always_inline]] inline void collideBuckets(const SphereTree& a, const NodeState& bucket_a,
                                                   const SphereTree& b, const NodeState& bucket_b,
                                                   double contact_distance_m,
+                                                  const PairSlabs& slabs,
                                                   ContactSink& contacts,
                                                   QueryCounters& counters) {
   counters.node_pairs_tested += bucket_a.leaf_count * bucket_b.leaf_count;
@@ -216,8 +221,14 @@ template <VectorWidth Width>
   while (within_reach != 0) {
     const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(within_reach));
     within_reach &= within_reach - 1;
-    closestLeafPair<Width>(a, first_a + (bit >> 3), b, first_b + (bit & 7), contact_distance_m,
-                          contacts, counters);
+    const std::uint32_t leaf_a = first_a + (bit >> 3);
+    const std::uint32_t leaf_b = first_b + (bit & 7);
+    if ((slabs.a || slabs.b) &&
+        slabs.apart(a.leafNode(leaf_a), leafSphere(spheres_a, leaf_a), b.leafNode(leaf_b),
+                    leafSphere(spheres_b, leaf_b), contact_distance_m)) {
+      continue;
+    }
+    closestLeafPair<Width>(a, leaf_a, b, leaf_b, contact_distance_m, contacts, counters);
   }
 }
 
@@ -225,24 +236,27 @@ template <VectorWidth Width>
 #if defined(__GNUC__) && defined(__x86_64__)
 __attribute__((target("avx512f"), flatten)) void collideBucketsAvx512(
     const SphereTree& a, const NodeState& bucket_a, const SphereTree& b, const NodeState& bucket_b,
-    double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
-  collideBuckets<VectorWidth::kAvx512>(a, bucket_a, b, bucket_b, contact_distance_m, contacts,
-                                       counters);
+    double contact_distance_m, const PairSlabs& slabs, ContactSink& contacts,
+    QueryCounters& counters) {
+  collideBuckets<VectorWidth::kAvx512>(a, bucket_a, b, bucket_b, contact_distance_m, slabs,
+                                       contacts, counters);
 }
 
 __attribute__((target("avx2"), flatten)) void collideBucketsAvx2(
     const SphereTree& a, const NodeState& bucket_a, const SphereTree& b, const NodeState& bucket_b,
-    double contact_distance_m, ContactSink& contacts, QueryCounters& counters) {
-  collideBuckets<VectorWidth::kAvx2>(a, bucket_a, b, bucket_b, contact_distance_m, contacts,
-                                     counters);
+    double contact_distance_m, const PairSlabs& slabs, ContactSink& contacts,
+    QueryCounters& counters) {
+  collideBuckets<VectorWidth::kAvx2>(a, bucket_a, b, bucket_b, contact_distance_m, slabs,
+                                     contacts, counters);
 }
 #endif
 
 void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, const SphereTree& b,
                             const NodeState& bucket_b, double contact_distance_m,
-                            ContactSink& contacts, QueryCounters& counters) {
-  collideBuckets<VectorWidth::kPortable>(a, bucket_a, b, bucket_b, contact_distance_m, contacts,
-                                         counters);
+                            const PairSlabs& slabs, ContactSink& contacts,
+                            QueryCounters& counters) {
+  collideBuckets<VectorWidth::kPortable>(a, bucket_a, b, bucket_b, contact_distance_m, slabs,
+                                         contacts, counters);
 }
 
 /// The leaf contacts of two sets of at most kBucketLeaves buckets each, every bucket of one
@@ -256,6 +270,7 @@ template <VectorWidth Width>
                                                      const std::uint32_t* buckets_b,
                                                      std::uint32_t count_b,
                                                      double contact_distance_m,
+                                                     const PairSlabs& slabs,
                                                      ContactSink& contacts,
                                                      QueryCounters& counters) {
   double x[kBucketLeaves], y[kBucketLeaves], z[kBucketLeaves], radius[kBucketLeaves];
@@ -276,8 +291,13 @@ template <VectorWidth Width>
     while (within_reach != 0) {
       const auto j = static_cast<std::uint32_t>(__builtin_ctz(within_reach));
       within_reach &= within_reach - 1;
-      collideBuckets<Width>(a, bucket_a, b, b.current(buckets_b[j], kBucketLeaves),
-                           contact_distance_m, contacts, counters);
+      const NodeState& bucket_b = b.current(buckets_b[j], kBucketLeaves);
+      if ((slabs.a || slabs.b) && slabs.apart(buckets_a[k], sphere, buckets_b[j], bucket_b.sphere,
+                                              contact_distance_m)) {
+        continue;
+      }
+      collideBuckets<Width>(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
+                           counters);
     }
   }
 }
@@ -286,27 +306,27 @@ template <VectorWidth Width>
 __attribute__((target("avx512f"), flatten)) void collideBucketSetsAvx512(
     SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a, SphereTree& b,
     const std::uint32_t* buckets_b, std::uint32_t count_b, double contact_distance_m,
-    ContactSink& contacts, QueryCounters& counters) {
+    const PairSlabs& slabs, ContactSink& contacts, QueryCounters& counters) {
   collideBucketSets<VectorWidth::kAvx512>(a, buckets_a, count_a, b, buckets_b, count_b,
-                                          contact_distance_m, contacts, counters);
+                                          contact_distance_m, slabs, contacts, counters);
 }
 
 __attribute__((target("avx2"), flatten)) void collideBucketSetsAvx2(
     SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a, SphereTree& b,
     const std::uint32_t* buckets_b, std::uint32_t count_b, double contact_distance_m,
-    ContactSink& contacts, QueryCounters& counters) {
+    const PairSlabs& slabs, ContactSink& contacts, QueryCounters& counters) {
   collideBucketSets<VectorWidth::kAvx2>(a, buckets_a, count_a, b, buckets_b, count_b,
-                                        contact_distance_m, contacts, counters);
+                                        contact_distance_m, slabs, contacts, counters);
 }
 #endif
 
 void collideBucketSetsPortable(SphereTree& a, const std::uint32_t* buckets_a,
                                std::uint32_t count_a, SphereTree& b,
                                const std::uint32_t* buckets_b, std::uint32_t count_b,
-                               double contact_distance_m, ContactSink& contacts,
-                               QueryCounters& counters) {
+                               double contact_distance_m, const PairSlabs& slabs,
+                               ContactSink& contacts, QueryCounters& counters) {
   collideBucketSets<VectorWidth::kPortable>(a, buckets_a, count_a, b, buckets_b, count_b,
-                                            contact_distance_m, contacts, counters);
+                                            contact_distance_m, slabs, contacts, counters);
 }
 
 /// Whether two spheres come closer than the contact distance.
@@ -334,6 +354,8 @@ struct HierarchyQuery::Descent {
   SphereTree& b;
   int level;
   double contact_distance_m;
+  /// The static objects' slabs, towards the leaves only (PairSlabs; none above them).
+  PairSlabs slabs;
   ContactSink& contacts;
   QueryCounters& counters;
   VectorWidth vectors;
@@ -358,32 +380,35 @@ struct HierarchyQuery::Descent {
 #if defined(__GNUC__) && defined(__x86_64__)
     if (vectors == VectorWidth::kAvx512) {
       collideBucketSetsAvx512(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                              contacts, counters);
+                              slabs, contacts, counters);
       return;
     }
     if (vectors == VectorWidth::kAvx2) {
       collideBucketSetsAvx2(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                            contacts, counters);
+                            slabs, contacts, counters);
       return;
     }
 #endif
     collideBucketSetsPortable(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                              contacts, counters);
+                              slabs, contacts, counters);
   }
 
   [[gnu::always_inline]] void leafContactsOfBuckets(const NodeState& bucket_a,
                                                     const NodeState& bucket_b) const {
 #if defined(__GNUC__) && defined(__x86_64__)
     if (vectors == VectorWidth::kAvx512) {
-      collideBucketsAvx512(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+      collideBucketsAvx512(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
+                           counters);
       return;
     }
     if (vectors == VectorWidth::kAvx2) {
-      collideBucketsAvx2(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+      collideBucketsAvx2(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
+                         counters);
       return;
     }
 #endif
-    collideBucketsPortable(a, bucket_a, b, bucket_b, contact_distance_m, contacts, counters);
+    collideBucketsPortable(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
+                           counters);
   }
 
   /// The contact of two nodes above the leaves, with the pair's least overlap as its depth.
@@ -460,7 +485,8 @@ struct HierarchyQuery::Descent {
         if (outOfReachUnmeasured(a, c, nb.sphere)) continue;
         const Sphere& child = a.current(c, leaf_limit).sphere;
         stack[stacked] = {c, pair.node_b, leastOverlap(pair.least_overlap_m, child, nb.sphere)};
-        if (withinReach(child, nb.sphere, contact_distance_m)) {
+        if (withinReach(child, nb.sphere, contact_distance_m) &&
+            !slabs.apart(c, child, pair.node_b, nb.sphere, contact_distance_m)) {
           a.prefetchChildren(c);
           ++stacked;
         }
@@ -470,7 +496,8 @@ struct HierarchyQuery::Descent {
         if (outOfReachUnmeasured(b, c, na.sphere)) continue;
         const Sphere& child = b.current(c, leaf_limit).sphere;
         stack[stacked] = {pair.node_a, c, leastOverlap(pair.least_overlap_m, na.sphere, child)};
-        if (withinReach(na.sphere, child, contact_distance_m)) {
+        if (withinReach(na.sphere, child, contact_distance_m) &&
+            !slabs.apart(pair.node_a, na.sphere, c, child, contact_distance_m)) {
           b.prefetchChildren(c);
           ++stacked;
         }
@@ -484,27 +511,32 @@ HierarchyQuery::HierarchyQuery(VectorWidth vectors)
     : vectors_(std::min(vectors, widestVectors())) {}
 
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
-                             std::vector<SphereContact>& contacts, QueryCounters& counters) {
+                             std::vector<SphereContact>& contacts, QueryCounters& counters,
+                             const PairSlabs& slabs) {
   struct Appender final : ContactSink {
     explicit Appender(std::vector<SphereContact>& contacts) : contacts(contacts) {}
     SphereContact& add() override { return contacts.emplace_back(); }
     std::vector<SphereContact>& contacts;
   } appender(contacts);
-  collide(a, b, level, contact_distance_m, appender, counters);
+  collide(a, b, level, contact_distance_m, appender, counters, slabs);
 }
 
 void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
-                             ContactSink& contacts, QueryCounters& counters) {
+                             ContactSink& contacts, QueryCounters& counters,
+                             const PairSlabs& slabs) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
-  const Descent descent{a, b, level, contact_distance_m, contacts, counters, vectors_,
+  const Descent descent{a, b, level, contact_distance_m, to_leaves ? slabs : PairSlabs{},
+                        contacts, counters, vectors_,
                         to_leaves, to_leaves ? kBucketLeaves : 0,
                         to_leaves && a.buckets().size() <= kBucketLeaves,
                         to_leaves && b.buckets().size() <= kBucketLeaves};
   const std::uint32_t leaf_limit = descent.leaf_limit;
   // Pairs are tested before they are stacked, so the stack holds only pairs within reach.
   ++counters.node_pairs_tested;
-  if (!withinReach(a.current(0, leaf_limit).sphere, b.current(0, leaf_limit).sphere,
-                   contact_distance_m)) {
+  const Sphere& root_a = a.current(0, leaf_limit).sphere;
+  const Sphere& root_b = b.current(0, leaf_limit).sphere;
+  if (!withinReach(root_a, root_b, contact_distance_m) ||
+      descent.slabs.apart(0, root_a, 0, root_b, contact_distance_m)) {
     return;
   }
   if (descent.small_a && descent.small_b) {

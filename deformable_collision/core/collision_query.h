@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "deformable_collision/core/node_slabs.h"
 #include "deformable_collision/core/sphere_tree.h"
 #include "deformable_collision/core/wide_vectors.h"
 
@@ -52,6 +53,20 @@ struct QueryCounters {
   std::size_t point_tests = 0;  ///< Point-sphere and point-point distance tests.
 };
 
+/// The slabs of the query's static objects (NodeSlabs), or null: towards the leaves they rule
+/// out node and leaf pairs whose spheres come within reach but whose points cannot.
+struct PairSlabs {
+  const NodeSlabs* a = nullptr;
+  const NodeSlabs* b = nullptr;
+
+  /// Whether a slab proves node_a's points and node_b's at least `distance_m` apart.
+  bool apart(std::uint32_t node_a, const Sphere& sphere_a, std::uint32_t node_b,
+             const Sphere& sphere_b, double distance_m) const {
+    return (a && a->apart(node_a, sphere_b, distance_m)) ||
+           (b && b->apart(node_b, sphere_a, distance_m));
+  }
+};
+
 /// Descends two sphere trees where their spheres come within the contact distance.
 /// Holds its traversal stack so that repeated queries allocate nothing.
 class HierarchyQuery {
@@ -72,12 +87,15 @@ class HierarchyQuery {
   /// are tested all at once against the other's (all of them if it is small too, else each
   /// bucket the descent reaches). Spheres are computed lazily (SphereTree::sphere); a bucket
   /// not yet measured is first tested with its bound (SphereTree::boundWithoutPoints), and
-  /// its points are read only if that comes within reach.
+  /// its points are read only if that comes within reach. `slabs`, when given, must be
+  /// those of the trees' current points; they prune only the descent to the leaves, whose
+  /// contacts are the same with them or without.
   void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
-               ContactSink& contacts, QueryCounters& counters);
+               ContactSink& contacts, QueryCounters& counters, const PairSlabs& slabs = {});
   /// collide() appending to a vector.
   void collide(SphereTree& a, SphereTree& b, int level, double contact_distance_m,
-               std::vector<SphereContact>& contacts, QueryCounters& counters);
+               std::vector<SphereContact>& contacts, QueryCounters& counters,
+               const PairSlabs& slabs = {});
 
  private:
   /// A node pair within reach, waiting to be visited.

@@ -116,6 +116,11 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
     for (const auto& point : made->body.positions()) made->sweep_box.extend(point);
     made->sweep_box.min().array() -= 0.5 * config_.contact_distance_m;
     made->sweep_box.max().array() += 0.5 * config_.contact_distance_m;
+    made->slabs.compute(made->tree, made->body.positions());
+  }
+  if (config.kind == ObjectKind::kKinematic) {
+    made->rest_slabs.compute(made->tree, made->body.restPositions());
+    made->slabs.pose(made->rest_slabs, Eigen::Isometry3d::Identity());
   }
   return made;
 }
@@ -133,6 +138,7 @@ void Scene::setPose(std::size_t object, const Eigen::Isometry3d& pose) {
   o.posed_points.resize(rest.size());
   for (std::size_t i = 0; i < rest.size(); ++i) o.posed_points[i] = pose * rest[i];
   o.body.setPositions(o.posed_points);
+  o.slabs.pose(o.rest_slabs, pose);
   o.stale = true;
   ++stats_.objects_moved;
 }

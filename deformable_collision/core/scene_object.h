@@ -8,6 +8,7 @@
 #include <memory>
 #include <vector>
 
+#include "deformable_collision/core/node_slabs.h"
 #include "deformable_collision/core/scene.h"
 
 namespace deformable_collision {
@@ -139,6 +140,10 @@ struct Scene::Object {
   std::vector<Eigen::Vector3d> posed_points;  ///< Kinematic objects: the rest shape posed.
 
   scene_internal::FixedPlanes planes;  ///< Objects the response never moves.
+  /// Static and kinematic objects, whose nodes' points move only rigidly: the slabs of
+  /// their points now, and a kinematic object's of its rest shape, which each pose moves.
+  NodeSlabs slabs;
+  NodeSlabs rest_slabs;
   scene_internal::DentScratch dents;   ///< Dynamic objects.
   scene_internal::PairContactNodes pair_nodes;  ///< Dynamic objects.
   scene_internal::ContactMemory contact_memory;

@@ -4,6 +4,7 @@
 
 #include <random>
 #include <set>
+#include <string>
 
 #include "deformable_collision/scenes/shapes.h"
 
@@ -147,6 +148,21 @@ INSTANTIATE_TEST_SUITE_P(Methods, NoMissedContactTest,
                            }
                          });
 
+/// The same contacts in the same order, to the bit.
+void expectSameContacts(const std::vector<SphereContact>& found,
+                        const std::vector<SphereContact>& expected) {
+  ASSERT_EQ(found.size(), expected.size());
+  for (std::size_t k = 0; k < found.size(); ++k) {
+    EXPECT_EQ(found[k].node_a, expected[k].node_a) << "contact " << k;
+    EXPECT_EQ(found[k].node_b, expected[k].node_b) << "contact " << k;
+    EXPECT_EQ(found[k].point_a, expected[k].point_a) << "contact " << k;
+    EXPECT_EQ(found[k].point_b, expected[k].point_b) << "contact " << k;
+    EXPECT_EQ(found[k].depth_m, expected[k].depth_m) << "contact " << k;
+    EXPECT_EQ(found[k].position, expected[k].position) << "contact " << k;
+    EXPECT_EQ(found[k].normal, expected[k].normal) << "contact " << k;
+  }
+}
+
 class VectorWidthTest : public ::testing::TestWithParam<VectorWidth> {};
 
 // The vector leaf tests (four or eight leaves or points per instruction) find the same
@@ -168,16 +184,8 @@ TEST_P(VectorWidthTest, FindsTheSameContactsBitForBit) {
                                                      counters);
       HierarchyQuery(GetParam()).collide(ta, tb, leaves, contact_distance, wide, counters);
       ASSERT_FALSE(portable.empty()) << "seed " << seed;
-      ASSERT_EQ(wide.size(), portable.size()) << "seed " << seed;
-      for (std::size_t k = 0; k < wide.size(); ++k) {
-        EXPECT_EQ(wide[k].node_a, portable[k].node_a);
-        EXPECT_EQ(wide[k].node_b, portable[k].node_b);
-        EXPECT_EQ(wide[k].point_a, portable[k].point_a);
-        EXPECT_EQ(wide[k].point_b, portable[k].point_b);
-        EXPECT_EQ(wide[k].depth_m, portable[k].depth_m);
-        EXPECT_EQ(wide[k].position, portable[k].position);
-        EXPECT_EQ(wide[k].normal, portable[k].normal);
-      }
+      SCOPED_TRACE("seed " + std::to_string(seed));
+      expectSameContacts(wide, portable);
     }
   }
 }
@@ -239,6 +247,98 @@ TEST(LevelOfDetail, ContactsNameTheirClosestPairOnlyAtTheLeaves) {
       EXPECT_NEAR((x - y).norm(), contact_distance - c.depth_m, 1e-12);
       EXPECT_TRUE(c.position.isApprox(0.5 * (x + y), 1e-12));
     }
+  }
+}
+
+/// A static floor (two layers of points 2 cm apart, as the demo scenes' floors) and a
+/// deformed object resting on it, from a seed: `points` of the object (250: few enough
+/// buckets to be tested as a set).
+struct FloorScene {
+  ShapeMatchingBody floor;
+  ShapeMatchingBody object;
+};
+
+FloorScene floorScene(std::uint64_t seed, std::size_t points) {
+  Points floor;
+  for (int i = 0; i <= 40; ++i) {
+    for (int j = 0; j <= 40; ++j) {
+      for (int k = 0; k < 2; ++k) floor.emplace_back(-0.4 + 0.02 * i, -0.4 + 0.02 * j, -0.02 * k);
+    }
+  }
+  std::mt19937_64 engine(seed);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  ShapeMatchingConfig config;
+  config.mode = static_cast<DeformationMode>(seed % 3);
+  config.clusters = 1 + static_cast<int>(seed % 2);
+  // Its lowest points sink up to 1 cm into the floor's top layer or hover up to 1 cm above.
+  const Points rest = shifted(sampleEllipsoid(points, {0.15, 0.1, 0.08}, seed + 3),
+                              {0.1 * unit(engine), 0.1 * unit(engine), 0.08 + 0.01 * unit(engine)});
+  FloorScene scene{ShapeMatchingBody(floor, ShapeMatchingConfig{}),
+                   ShapeMatchingBody(rest, config)};
+  std::normal_distribution<double> noise(0.0, 0.005);
+  Points deformed = scene.object.restPositions();
+  for (auto& x : deformed) x += Eigen::Vector3d(noise(engine), noise(engine), noise(engine));
+  scene.object.setPositions(deformed);
+  return scene;
+}
+
+// A static object's slabs prune the descent to the leaves without changing a contact: the
+// same contacts, in the same order, to the bit, for either object first, every vector width
+// and an object small enough to be tested as a set of buckets or not; and fewer point tests.
+TEST(NodeSlabsInTheQuery, FindTheSameLeafContactsWithFewerPointTests) {
+  for (std::uint64_t seed = 0; seed < 6; ++seed) {
+    const std::size_t points = seed < 3 ? 250 : 3000;
+    FloorScene scene = floorScene(seed, points);
+    SphereTree floor(scene.floor, {2, 8});
+    SphereTree object(scene.object, {2, 8});
+    NodeSlabs slabs;
+    slabs.compute(floor, scene.floor.positions());
+    const double contact_distance = 0.02;
+    const int leaves = std::max(floor.maxLevel(), object.maxLevel());
+    for (const VectorWidth width : kVectorWidths) {
+      for (const bool floor_first : {true, false}) {
+        SCOPED_TRACE("seed " + std::to_string(seed) + ", width " +
+                     std::to_string(static_cast<int>(width)) +
+                     (floor_first ? ", floor first" : ""));
+        SphereTree& a = floor_first ? floor : object;
+        SphereTree& b = floor_first ? object : floor;
+        const PairSlabs pair_slabs{floor_first ? &slabs : nullptr, floor_first ? nullptr : &slabs};
+        std::vector<SphereContact> without, with;
+        QueryCounters counted_without, counted_with;
+        HierarchyQuery query(width);
+        query.collide(a, b, leaves, contact_distance, without, counted_without);
+        query.collide(a, b, leaves, contact_distance, with, counted_with, pair_slabs);
+        ASSERT_FALSE(without.empty());
+        expectSameContacts(with, without);
+        EXPECT_LT(counted_with.point_tests, counted_without.point_tests);
+        const auto truth = floor_first ? bruteForcePairs(scene.floor.positions(),
+                                                         scene.object.positions(), contact_distance)
+                                       : bruteForcePairs(scene.object.positions(),
+                                                         scene.floor.positions(), contact_distance);
+        const auto covered = coveredPairs(a, b, with);
+        for (const auto& pair : truth) ASSERT_TRUE(covered.count(pair));
+      }
+    }
+  }
+}
+
+// Above the leaves a contact is two overlapping spheres, whatever their points: the slabs
+// change nothing there.
+TEST(NodeSlabsInTheQuery, LeaveTheCoarseLevelsAlone) {
+  FloorScene scene = floorScene(4, 3000);
+  SphereTree floor(scene.floor, {2, 8});
+  SphereTree object(scene.object, {2, 8});
+  NodeSlabs slabs;
+  slabs.compute(floor, scene.floor.positions());
+  HierarchyQuery query;
+  for (int level = 0; level < std::max(floor.maxLevel(), object.maxLevel()); ++level) {
+    std::vector<SphereContact> without, with;
+    QueryCounters counters;
+    query.collide(floor, object, level, 0.02, without, counters);
+    query.collide(floor, object, level, 0.02, with, counters, PairSlabs{&slabs, nullptr});
+    ASSERT_FALSE(without.empty()) << "level " << level;
+    SCOPED_TRACE("level " + std::to_string(level));
+    expectSameContacts(with, without);
   }
 }
 
