@@ -311,11 +311,25 @@ Scene::FixedSurface Scene::fixedSurface(const ResolvingPair& pair, std::uint32_t
 bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c,
                                ContactPush& push) {
   const bool a_fixed = !pair.a.dynamic();
-  const Object& moving = a_fixed ? pair.b : pair.a;
+  Object& moving = a_fixed ? pair.b : pair.a;
   const FixedSurface surface = fixedSurface(pair, a_fixed ? c.node_a : c.node_b);
-  const SphereNode& node = moving.tree.node(a_fixed ? c.node_b : c.node_a);
+  const std::uint32_t moving_node = a_fixed ? c.node_b : c.node_a;
+  const SphereNode& node = moving.tree.node(moving_node);
   // Pairs resolved before this one may have moved the object already.
   double lowest = moving.translation.dot(surface.away);
+  // The node's sphere bounds its points along the plane's normal: where even its lowest
+  // point leaves no depth, no point does, and the points are not read (a coarse node holds
+  // hundreds, and most of a pile's coarse contacts with a floor or a wall are such). The
+  // margin is far above the rounding of these sums, so the outcome is the points' own.
+  const Sphere& bound = moving.tree.sphere(moving_node);
+  const Eigen::Vector3d from_plane = bound.center - surface.plane_point;
+  const double margin = 1e-12 * (from_plane.norm() + bound.radius + std::abs(surface.reach) +
+                                 config_.contact_distance_m + std::abs(lowest));
+  if (surface.reach + 0.5 * config_.contact_distance_m -
+          (lowest + from_plane.dot(surface.away) - bound.radius - margin) <=
+      0.0) {
+    return false;
+  }
   double deepest = std::numeric_limits<double>::infinity();
   const auto& positions = moving.body.positions();
   for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
