@@ -185,7 +185,8 @@ template <VectorWidth Width>
 }
 
 [[gnu::always_inline]] inline Sphere leafSphere(const LeafSpheres& spheres, std::uint32_t leaf) {
-  return {Eigen::Vector3d(spheres.x[leaf], spheres.y[leaf], spheres.z[leaf]), spheres.radius[leaf]};
+  return {Eigen::Vector3d(spheres.x[leaf], spheres.y[leaf], spheres.z[leaf]),
+          spheres.radius[leaf]};
 }
 
 /// Leaves under a node at which the descent to the leaves stops: their spheres are then
@@ -354,7 +355,7 @@ struct HierarchyQuery::Descent {
   SphereTree& b;
   int level;
   double contact_distance_m;
-  /// The static objects' slabs, towards the leaves only (PairSlabs; none above them).
+  /// The slabs of static and kinematic objects, towards the leaves only (none above them).
   PairSlabs slabs;
   ContactSink& contacts;
   QueryCounters& counters;

@@ -53,8 +53,9 @@ struct QueryCounters {
   std::size_t point_tests = 0;  ///< Point-sphere and point-point distance tests.
 };
 
-/// The slabs of the query's static objects (NodeSlabs), or null: towards the leaves they rule
-/// out node and leaf pairs whose spheres come within reach but whose points cannot.
+/// The slabs of the query's static and kinematic objects (NodeSlabs), or null: towards the
+/// leaves they rule out node and leaf pairs whose spheres come within reach but whose points
+/// cannot.
 struct PairSlabs {
   const NodeSlabs* a = nullptr;
   const NodeSlabs* b = nullptr;

@@ -16,10 +16,10 @@ Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end
 #if defined(__GNUC__) && defined(__x86_64__)
   if (width == VectorWidth::kAvx512) {
     j = accumulateAvx512<K, Terms>(cluster, begin, end, weights, positions.data(),
-                                      velocities.data(), reference, sums);
+                                   velocities.data(), reference, sums);
   } else if (width == VectorWidth::kAvx2) {
     j = accumulateAvx2<K, Terms>(cluster, begin, end, weights, positions.data(),
-                                    velocities.data(), reference, sums);
+                                 velocities.data(), reference, sums);
   }
 #endif
   // The wide vectors took whole blocks of eight, so slot j + n goes to part n.
@@ -50,7 +50,7 @@ ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
                         const Eigen::Vector3d& reference, VectorWidth width) {
   // Exclusive slots are summed unweighted and scaled by the point mass once.
   const Moments<K> exclusive = accumulate<K, Terms>(cluster, 0, cluster.exclusive_count, nullptr,
-                                                   positions, velocities, reference, width);
+                                                    positions, velocities, reference, width);
   const Moments<K> shared = accumulate<K, Terms>(
       cluster, cluster.exclusive_count, cluster.points.size(), cluster.shared_weights_kg.data(),
       positions, velocities, reference, width);
