@@ -11,11 +11,12 @@
 
 namespace deformable_collision {
 
-/// For every node of a tree over points that never move (a static object), the slab that
-/// holds the node's points: two parallel planes across the direction in which they spread
-/// least. A flat node's sphere reaches half its width above and below its points, so over a
-/// floor or a wall the spheres of everything resting on it overlap the floor's nodes far
-/// more often than the points come within reach; the slab rules those pairs out.
+/// For every node of a tree over points that move only rigidly (a static object, or a
+/// kinematic one through pose()), the slab that holds the node's points: two parallel
+/// planes across the direction in which they spread least. A flat node's sphere reaches
+/// half its width above and below its points, so over a floor or a wall the spheres of
+/// everything resting on it overlap the floor's nodes far more often than the points come
+/// within reach; the slab rules those pairs out.
 class NodeSlabs {
  public:
   /// The slabs of every node of `tree`, whose points are `positions` (indexed by the tree's

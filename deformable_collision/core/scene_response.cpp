@@ -319,7 +319,7 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
   double lowest = moving.translation.dot(surface.away);
   // The node's sphere bounds its points along the plane's normal: where even its lowest
   // point leaves no depth, no point does, and the points are not read (a coarse node holds
-  // hundreds, and most of a pile's coarse contacts with a floor or a wall are such). The
+  // hundreds, and many of a pile's coarse contacts with a floor or a wall are such). The
   // margin is far above the rounding of these sums, so the outcome is the points' own.
   const Sphere& bound = moving.tree.sphere(moving_node);
   const Eigen::Vector3d from_plane = bound.center - surface.plane_point;
