@@ -585,6 +585,44 @@ TEST(MoveRigidly, BoundCoversTheRoundingOfManyMovesFarFromTheOrigin) {
   }
 }
 
+TEST(MoveRigidly, EveryPointTakesTheSameOffsetAndVelocityChange) {
+  // Without a turn the points are moved as a flat array of coordinates, two points at a
+  // time: every count, odd ones with a last point alone too, must move each point exactly
+  // as adding the offset to it would, and a zero offset or change must leave the points.
+  struct MoveCase {
+    const char* name;
+    std::size_t points;
+    Eigen::Vector3d offset;
+    Eigen::Vector3d change;
+  };
+  const std::vector<MoveCase> cases = {
+      {"one_point", 1, {0.02, -0.01, 0.03}, {0.1, 0.2, -0.3}},
+      {"two_points", 2, {0.02, -0.01, 0.03}, {0.1, 0.2, -0.3}},
+      {"five_points", 5, {-1e-3, 2e-3, 7e-4}, {0.0, 0.0, -0.05}},
+      {"odd_hundreds", 601, {0.3, 0.0, -0.2}, {1.5, -2.0, 0.25}},
+      {"far_from_the_origin", 64, {1e5, -1e5, 3e4}, {0.1, 0.2, -0.3}},
+      {"no_offset", 9, {0.0, 0.0, 0.0}, {0.1, 0.2, -0.3}},
+      {"no_velocity_change", 9, {0.02, -0.01, 0.03}, {0.0, 0.0, 0.0}},
+  };
+  for (const MoveCase& c : cases) {
+    SCOPED_TRACE(c.name);
+    ShapeMatchingBody body(sampleBox(c.points, {0.3, 0.2, 0.1}, 11),
+                           configFor(DeformationMode::kLinear, 1));
+    Points velocities;
+    for (const auto& p : body.positions()) velocities.push_back(Eigen::Vector3d(0.5, -1.0, 2.0).cross(p));
+    body.setVelocities(velocities);
+    const Points positions = body.positions();
+    body.moveRigidly(c.offset, c.change);
+    ASSERT_EQ(body.pointCount(), c.points);
+    for (std::size_t i = 0; i < c.points; ++i) {
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_EQ(body.positions()[i][r], positions[i][r] + c.offset[r]) << "point " << i;
+        EXPECT_EQ(body.velocities()[i][r], velocities[i][r] + c.change[r]) << "point " << i;
+      }
+    }
+  }
+}
+
 TEST(MoveRigidly, TurnMovesThePointsVelocitiesAndTheSumsFollow) {
   // The sums that moveRigidly updates without visiting the points feed the damping and
   // rigidMotion: a copy that sums its points afresh must report the same motion and take
