@@ -298,6 +298,9 @@ class Scene {
     Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
     double depth_a = 0.0;
     double depth_b = 0.0;
+    /// Against a fixed node: the level along the push, unmoved, where the moving object's
+    /// points are clear of its surface by half the contact distance.
+    double surface_m = 0.0;
   };
 
   SceneConfig config_;

@@ -23,9 +23,10 @@ void DentScratch::reserve(std::size_t point_count, std::size_t node_count) {
 // fixed node's plane): they are kept as one dent with a list of depths, so that the node's
 // points are visited once for all of them.
 void DentScratch::add(std::uint32_t node, const Eigen::Vector3d& away, double depth_unmoved_m,
-                      std::uint32_t partner, std::uint64_t pair_serial) {
+                      std::uint32_t partner, std::uint64_t pair_serial,
+                      std::optional<double> surface_m) {
   const std::uint32_t depth = static_cast<std::uint32_t>(depths.size());
-  depths.push_back({depth_unmoved_m, kNoDepth});
+  depths.push_back({depth_unmoved_m, surface_m.value_or(0.0), kNoDepth});
   if (dent_pair_of_node[node] == pair_serial) {
     PendingDent& last = pending[dent_of_node[node]];
     if (last.away == away) {
@@ -36,7 +37,7 @@ void DentScratch::add(std::uint32_t node, const Eigen::Vector3d& away, double de
   }
   dent_pair_of_node[node] = pair_serial;
   dent_of_node[node] = static_cast<std::uint32_t>(pending.size());
-  pending.push_back({node, away, partner, depth, depth});
+  pending.push_back({node, away, partner, depth, depth, surface_m.has_value()});
 }
 
 void DentScratch::averageDisplacements() {
@@ -123,11 +124,45 @@ RigidVelocityChange DentScratch::balanceVelocityChanges(
 // moving up.
 void Scene::Object::applyPendingDents(const std::vector<std::unique_ptr<Object>>& objects) {
   using scene_internal::DentScratch;
+  const auto& positions = body.positions();
   const auto& velocities = body.velocities();
   for (const DentScratch::PendingDent& pending : dents.pending) {
     // Each of the node's contacts with the partner dents it by what it needs beyond the
     // object's move; a point takes the mean over all the dents it gets.
     const double moved = translation.dot(pending.away);
+    // The partner's velocity after the response, less this object's own change: what a
+    // point's current velocity is compared with.
+    const Eigen::Vector3d other_velocity =
+        objects[pending.partner]->velocity_after - velocity_change;
+    const auto dent = [&](std::uint32_t point, double beyond_sum, std::uint32_t beyond_count) {
+      if (dents.displacement_counts[point] == 0) dents.displaced_points.push_back(point);
+      dents.displacement_counts[point] += beyond_count;
+      dents.displacement_sums[point] += beyond_sum * pending.away;
+      const double inward =
+          std::min(0.0, (velocities[point] - other_velocity).dot(pending.away));
+      dents.velocity_change_sums[point] -= (beyond_count * inward) * pending.away;
+    };
+    const SphereNode& node = tree.node(pending.node);
+    const std::uint32_t* slots = tree.pointIndices().data() + node.first_point;
+    if (pending.to_surface) {
+      // A coarse node against a fixed surface: only its points short of the surface move,
+      // each by its own need, as the leaves' contacts would move them. The node's deepest
+      // point's depth, given to all, would dent hundreds of points by what one needs.
+      for (std::uint32_t s = 0; s < node.point_count; ++s) {
+        const double along = positions[slots[s]].dot(pending.away) + moved;
+        double beyond_sum = 0.0;
+        std::uint32_t beyond_count = 0;
+        for (std::uint32_t d = pending.first_depth; d != DentScratch::kNoDepth;
+             d = dents.depths[d].next) {
+          const double beyond = dents.depths[d].surface_m - along;
+          if (beyond <= 0.0) continue;
+          beyond_sum += beyond;
+          ++beyond_count;
+        }
+        if (beyond_count > 0) dent(slots[s], beyond_sum, beyond_count);
+      }
+      continue;
+    }
     double beyond_sum = 0.0;
     std::uint32_t beyond_count = 0;
     for (std::uint32_t d = pending.first_depth; d != DentScratch::kNoDepth;
@@ -138,21 +173,7 @@ void Scene::Object::applyPendingDents(const std::vector<std::unique_ptr<Object>>
       ++beyond_count;
     }
     if (beyond_count == 0) continue;
-    // The partner's velocity after the response, less this object's own change: what a
-    // point's current velocity is compared with.
-    const Eigen::Vector3d other_velocity =
-        objects[pending.partner]->velocity_after - velocity_change;
-    const Eigen::Vector3d displacement = beyond_sum * pending.away;
-    const SphereNode& node = tree.node(pending.node);
-    for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-      const std::uint32_t point = tree.pointIndices()[s];
-      if (dents.displacement_counts[point] == 0) dents.displaced_points.push_back(point);
-      dents.displacement_counts[point] += beyond_count;
-      dents.displacement_sums[point] += displacement;
-      const double inward =
-          std::min(0.0, (velocities[point] - other_velocity).dot(pending.away));
-      dents.velocity_change_sums[point] -= (beyond_count * inward) * pending.away;
-    }
+    for (std::uint32_t s = 0; s < node.point_count; ++s) dent(slots[s], beyond_sum, beyond_count);
   }
   dents.pending.clear();
   dents.depths.clear();

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "deformable_collision/core/node_slabs.h"
@@ -50,18 +51,25 @@ struct DentScratch {
     /// Its contacts' depths in depths, a list from first_depth to last_depth.
     std::uint32_t first_depth = kNoDepth;
     std::uint32_t last_depth = kNoDepth;
+    /// Each point goes to its contacts' surfaces (DentDepth::surface_m), not the whole node
+    /// by its deepest point's depth.
+    bool to_surface = false;
   };
   struct DentDepth {
     double depth_unmoved_m = 0.0;  ///< How far the node must go if the object did not move.
+    /// For a dent to_surface: where along `away` its points are cleared to, unmoved.
+    double surface_m = 0.0;
     std::uint32_t next = kNoDepth;
   };
 
   /// Sized once, so that no cycle allocates, even the first that dents every point.
   void reserve(std::size_t point_count, std::size_t node_count);
   /// Notes a contact's dent of `node`, pushed along `away` by `partner` in the pair resolved
-  /// as `pair_serial`.
+  /// as `pair_serial`; with `surface_m`, each of the node's points only as far as it lies
+  /// short of that level along `away` (every contact of a pair dents alike).
   void add(std::uint32_t node, const Eigen::Vector3d& away, double depth_unmoved_m,
-           std::uint32_t partner, std::uint64_t pair_serial);
+           std::uint32_t partner, std::uint64_t pair_serial,
+           std::optional<double> surface_m = std::nullopt);
   /// Turns the sums into one mean displacement per dented point (in displacements) and
   /// clears them.
   void averageDisplacements();

@@ -342,6 +342,8 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
   push.normal = a_fixed ? Eigen::Vector3d(-surface.away) : surface.away;
   push.depth_a = a_fixed ? 0.0 : depth;
   push.depth_b = a_fixed ? depth : 0.0;
+  push.surface_m = surface.plane_point.dot(surface.away) + surface.reach +
+                   0.5 * config_.contact_distance_m;
   return true;
 }
 
@@ -526,16 +528,21 @@ bool Scene::heldContact(const ResolvingPair& pair) {
 void Scene::queueDents(const ResolvingPair& pair) {
   Object& a = pair.a;
   Object& b = pair.b;
+  // Above the leaves a fixed node's surface dents each point to it: a coarse node's depth
+  // is its deepest point's. At the leaves a node is a few points, dented whole.
+  const bool to_surface = pair.one_side_fixed && !pair.leaves;
   for (const ContactPush& push : pushes_) {
+    const std::optional<double> surface =
+        to_surface ? std::optional<double>(push.surface_m) : std::nullopt;
     if (a.dynamic() && push.depth_a > 0.0) {
       a.dents.add(push.node_a, push.normal,
                   push.depth_a + pair.translation_before_a.dot(push.normal), pair.index_b,
-                  pair_serial_);
+                  pair_serial_, surface);
     }
     if (b.dynamic() && push.depth_b > 0.0) {
       b.dents.add(push.node_b, -push.normal,
                   push.depth_b - pair.translation_before_b.dot(push.normal), pair.index_a,
-                  pair_serial_);
+                  pair_serial_, surface);
     }
   }
 }

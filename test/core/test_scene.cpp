@@ -33,10 +33,9 @@ Points floorPoints() {
   return floor;
 }
 
-/// A scene as these tests use it: a 2 cm contact distance, `level`, and floorPoints() as a
-/// static floor.
-std::unique_ptr<Scene> sceneOnFloor(int level) {
-  SceneConfig config;
+/// A scene as these tests use it: `config` with a 2 cm contact distance and `level`, and
+/// floorPoints() as a static floor.
+std::unique_ptr<Scene> sceneOnFloor(int level, SceneConfig config = {}) {
   config.contact_distance_m = 0.02;
   config.level = level;
   auto scene = std::make_unique<Scene>(config);
@@ -393,6 +392,58 @@ INSTANTIATE_TEST_SUITE_P(Levels, SoftStackTest, ::testing::Values(0, 2, 4, -1),
                            return info.param < 0 ? std::string("finest")
                                                  : "level_" + std::to_string(info.param);
                          });
+
+// ---------------------------------------------------------------------------------------
+// A soft ball set 1 cm into the floor, without gravity, at levels above the leaves: one
+// response clears every point of it to half the contact distance above the floor, and the
+// points it dents are only those that its whole move left short of that. A coarse node holds
+// hundreds of points, most of them above the floor: dented whole by its deepest point's
+// depth, all of them would move.
+
+class CoarseDentTest : public ::testing::TestWithParam<std::tuple<int, DeformationMode>> {};
+
+TEST_P(CoarseDentTest, MovesOnlyThePointsShortOfTheSurface) {
+  const auto [level, mode] = GetParam();
+  SceneConfig weightless;
+  weightless.gravity_mps2.setZero();
+  auto scene_on_floor = sceneOnFloor(level, weightless);
+  Scene& scene = *scene_on_floor;
+  ObjectConfig ball;
+  ball.name = "ball";
+  ball.shape.mode = mode;
+  ball.shape.stiffness = 0.2;
+  Points points = sampleEllipsoid(1500, {0.08, 0.08, 0.08}, 21);
+  for (auto& p : points) p.z() += 0.07;
+  const std::size_t index = scene.addObject(ball, points);
+  ASSERT_LT(level, scene.maxLevel());
+
+  const double cleared_z = 0.5 * scene.config().contact_distance_m;
+  scene.cycle();
+  // The object's own move is its top point's, which nothing dents.
+  const auto top = std::max_element(points.begin(), points.end(),
+                                     [](const auto& p, const auto& q) { return p.z() < q.z(); });
+  const double moved_up = scene.body(index).positions()[top - points.begin()].z() - top->z();
+  EXPECT_GT(moved_up, 0.0);
+  std::size_t moved_more = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (scene.body(index).positions()[i].z() - points[i].z() <= moved_up + 1e-9) continue;
+    ++moved_more;
+    // The floor's surface is its nodes' fitted planes, true to a fraction of a millimetre.
+    EXPECT_LT(points[i].z() + moved_up, cleared_z + 1e-3) << "point " << i << " was clear";
+  }
+  EXPECT_GT(moved_more, 0u);
+  EXPECT_LT(scene.stats().points_displaced, points.size() / 10);
+  EXPECT_GE(lowestZ(scene.body(index)), cleared_z - 1e-9);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    LevelsAndModes, CoarseDentTest,
+    ::testing::Combine(::testing::Values(1, 2, 3),
+                       ::testing::Values(DeformationMode::kLinear, DeformationMode::kQuadratic)),
+    [](const auto& info) {
+      return "level_" + std::to_string(std::get<0>(info.param)) + "_" +
+             toString(std::get<1>(info.param));
+    });
 
 // ---------------------------------------------------------------------------------------
 // Built-in scenes, small: nothing becomes NaN, nothing runs away, nothing goes through the
