@@ -20,12 +20,6 @@ double millisecondsBetween(Clock::time_point from, Clock::time_point to) {
   return std::chrono::duration<double, std::milli>(to - from).count();
 }
 
-Eigen::Vector3d meanOf(const std::vector<Eigen::Vector3d>& points) {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const auto& point : points) sum += point;
-  return sum / static_cast<double>(points.size());
-}
-
 }  // namespace
 
 Scene::Object::Object(const ObjectConfig& object_config, std::vector<Eigen::Vector3d> rest_points,
@@ -184,7 +178,7 @@ void Scene::cycle() {
   const auto start = Clock::now();
   for (auto& object : objects_) {
     if (!object->dynamic()) continue;
-    object->center_before_step = meanOf(object->body.positions());
+    object->center_before_step = object->body.meanPosition();
     object->body.step(config_.dt_s, config_.gravity_mps2);
     object->stale = true;
     ++stats_.objects_moved;

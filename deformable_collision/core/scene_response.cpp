@@ -181,7 +181,8 @@ void Scene::applyObjectResponse(Object& object) {
   if (reach > allowed) object.translation *= allowed / reach;
   object.dents.averageDisplacements();
   if (object.dents.displacements.empty()) {
-    object.body.moveRigidly(object.translation, object.velocity_change);
+    // The points make the move in the next step's pass over them.
+    object.body.deferRigidMove(object.translation, object.velocity_change);
   } else {
     const RigidMotion motion = object.body.rigidMotion();
     const Sphere& bound = object.tree.sphere(0);
@@ -190,11 +191,11 @@ void Scene::applyObjectResponse(Object& object) {
         (bound.center - motion.center).norm() + bound.radius);
     object.body.moveRigidly(object.translation, object.velocity_change - balance.velocity,
                             -balance.spin, balance.center + object.translation);
+    stats_.points_displaced += object.dents.displacements.size();
+    object.body.displacePoints(object.dents.displacements);
   }
   object.translation.setZero();
   object.velocity_change.setZero();
-  stats_.points_displaced += object.dents.displacements.size();
-  object.body.displacePoints(object.dents.displacements);
   object.stale = true;
 }
 

@@ -200,6 +200,7 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
 }
 
 std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observed_points) {
+  makeDeferredMove();
   const std::size_t unobserved = countUnobserved(observed_points);
   copyObserved(observed_points, unobserved);
   registerObserved(observed_points, unobserved);
@@ -207,6 +208,7 @@ std::size_t ShapeMatchingBody::track(const std::vector<Eigen::Vector3d>& observe
 }
 
 std::size_t ShapeMatchingBody::trackSwapping(std::vector<Eigen::Vector3d>& observed_points) {
+  makeDeferredMove();
   const std::size_t unobserved = countUnobserved(observed_points);
   if (unobserved == 0) {
     positions_.swap(observed_points);
@@ -253,6 +255,7 @@ void ShapeMatchingBody::setPositions(const std::vector<Eigen::Vector3d>& positio
 
 void ShapeMatchingBody::setVelocities(const std::vector<Eigen::Vector3d>& velocities) {
   requireOnePerPoint(velocities, velocities_.size(), "velocity", "velocities");
+  makeDeferredMove();
   velocities_ = velocities;
   stopped_ = false;
   withMode(config_.mode, [&](auto mode) { sumCurrentState<decltype(mode)::value>(); });

@@ -116,6 +116,30 @@ struct ClusterSums {
 /// One object simulated or registered by clustered meshless shape matching.
 /// Rest-shape precomputation happens once in the constructor; step() and track() are the
 /// per-cycle work and allocate nothing.
+namespace detail {
+
+/// A whole-object move the points have not made yet (ShapeMatchingBody::deferRigidMove):
+/// x += offset, v += velocity_change. A part that is zero is left out, as moveRigidly leaves
+/// it out, so that a deferred move gives its bits.
+struct DeferredMove {
+  double offset[3] = {};
+  double velocity_change[3] = {};
+  bool moves_positions = false;
+  bool moves_velocities = false;
+
+  bool waiting() const { return moves_positions || moves_velocities; }
+  void apply(double* x, double* v) const {
+    if (moves_positions) {
+      for (int r = 0; r < 3; ++r) x[r] += offset[r];
+    }
+    if (moves_velocities) {
+      for (int r = 0; r < 3; ++r) v[r] += velocity_change[r];
+    }
+  }
+};
+
+}  // namespace detail
+
 class ShapeMatchingBody {
  public:
   /// Runs the per-point passes of a step and of the fit residuals on vectors of up to
@@ -187,6 +211,20 @@ class ShapeMatchingBody {
   void moveRigidly(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps,
                    const Eigen::Vector3d& spin_change_radps, const Eigen::Vector3d& center_m);
 
+  /// moveRigidly(offset, velocity change), but the points move in the next step's pass over
+  /// them, with the same bits as moved now: a response's whole-object move costs no pass of
+  /// its own. The sums follow at once; positions() and velocities(), and every other
+  /// method, make the move first if they come before the step (the AVX-512 step too).
+  /// @throw std::invalid_argument if the offset or the velocity is not finite; the state is
+  ///        then unchanged.
+  void deferRigidMove(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps);
+
+  /// The mean of the points' positions, a deferred move included, summed in point order:
+  /// without making the move.
+  Eigen::Vector3d meanPosition() const;
+  /// Whether a deferred move waits for the next step (or the next read of the points).
+  bool hasDeferredMove() const { return deferred_move_.waiting(); }
+
   /// The whole object's rigid motion (O(clusters)).
   RigidMotion rigidMotion() const;
 
@@ -198,8 +236,14 @@ class ShapeMatchingBody {
   std::size_t pointCount() const { return positions_.size(); }
   double pointMassKg() const { return point_mass_kg_; }
   const std::vector<Eigen::Vector3d>& restPositions() const { return rest_positions_; }
-  const std::vector<Eigen::Vector3d>& positions() const { return positions_; }
-  const std::vector<Eigen::Vector3d>& velocities() const { return velocities_; }
+  const std::vector<Eigen::Vector3d>& positions() const {
+    makeDeferredMove();
+    return positions_;
+  }
+  const std::vector<Eigen::Vector3d>& velocities() const {
+    makeDeferredMove();
+    return velocities_;
+  }
   std::size_t clusterCount() const { return clusters_.size(); }
   const Cluster& cluster(std::size_t k) const { return clusters_[k]; }
   const ClusterDeformation& deformation(std::size_t k) const { return deformations_[k]; }
@@ -227,13 +271,23 @@ class ShapeMatchingBody {
   void applyDisplacements(const std::vector<PointDisplacement>& displacements);
   template <DeformationMode Mode>
   void refitDisplacedClusters();
+  /// Moves the points by a deferred move, if one waits. Logically const: the state it
+  /// completes is the one the sums already describe.
+  void makeDeferredMove() const;
+  /// The sums and fits of a whole-object move (the points apart).
+  void followRigidMove(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps,
+                       const Eigen::Vector3d& spin_change_radps, const Eigen::Vector3d& center_m);
 
   ShapeMatchingConfig config_;
   VectorWidth vector_width_ = VectorWidth::kPortable;
   double point_mass_kg_ = 0.0;
   std::vector<Eigen::Vector3d> rest_positions_;
-  std::vector<Eigen::Vector3d> positions_;
-  std::vector<Eigen::Vector3d> velocities_;
+  // Mutable for the deferred move only (makeDeferredMove).
+  mutable std::vector<Eigen::Vector3d> positions_;
+  mutable std::vector<Eigen::Vector3d> velocities_;
+  /// A whole-object move the points have not made yet (deferRigidMove): the next step
+  /// makes it in its pass over them.
+  mutable detail::DeferredMove deferred_move_;
   /// Every velocity is zero, as the constructor and a registration leave them: a tracked
   /// object's registrations then write none (false after anything that may move a point).
   bool stopped_ = true;

@@ -225,6 +225,14 @@ __attribute__((target("avx2"))) std::size_t moveExclusiveAvx2(
       __m256d v[3];
       loadPoints(cluster, slot, xs, x);
       loadPoints(cluster, slot, vs, v);
+      if (motion.deferred.moves_positions) {
+        for (int r = 0; r < 3; ++r) x[r] = _mm256_add_pd(x[r], _mm256_set1_pd(motion.deferred.offset[r]));
+      }
+      if (motion.deferred.moves_velocities) {
+        for (int r = 0; r < 3; ++r) {
+          v[r] = _mm256_add_pd(v[r], _mm256_set1_pd(motion.deferred.velocity_change[r]));
+        }
+      }
       __m256d target[3];
       if constexpr (Damped) {
         __m256d spin[3];

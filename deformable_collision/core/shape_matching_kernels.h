@@ -241,9 +241,12 @@ struct StepMotion {
   double object_center[3] = {};
   double object_velocity[3] = {};
   double object_spin[3] = {};
+  /// Made first, as if made before the step.
+  DeferredMove deferred;
 
   template <bool Damped>
   void move(const double (&goal)[3], double* x, double* v) const {
+    deferred.apply(x, v);
     double target[3] = {};
     if constexpr (Damped) {
       const double d[3] = {x[0] - object_center[0], x[1] - object_center[1],

@@ -173,6 +173,8 @@ void ShapeMatchingBody::step(double dt_s, const Eigen::Vector3d& acceleration_mp
     throw std::invalid_argument("external acceleration is not finite");
   }
   const bool damped = config_.damping > 0.0;
+  // The AVX-512 kernels take no deferred move: the points make it first.
+  if (vector_width_ == VectorWidth::kAvx512) makeDeferredMove();
   stopped_ = false;
   detail::withMode(config_.mode, [&](auto mode) {
     constexpr DeformationMode kMode = decltype(mode)::value;
@@ -192,9 +194,13 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   }
   // Damping keeps the rigid motion of the whole object, not of each cluster: clusters
   // turning against each other (bending) are non-rigid motion and must decay too.
-  const StepMotion motion =
+  StepMotion motion =
       stepMotion(dt_s, acceleration_mps2, config_,
                  Damped ? objectRigidMotion(clusters_, deformations_, cluster_sums_) : RigidMotion{});
+  // Every point is moved once below, exclusive in its cluster or shared: each makes the
+  // deferred move as it is loaded.
+  motion.deferred = deferred_move_;
+  deferred_move_ = detail::DeferredMove{};
 
   // Move the points; the same pass sums the moved points for the next fit.
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
@@ -248,6 +254,7 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
       !center_m.allFinite()) {
     throw std::invalid_argument("velocity change, spin or centre is not finite");
   }
+  makeDeferredMove();
   stopped_ = false;
   if (spin_change_radps.isZero(0.0)) {
     addToEveryPoint(offset_m, positions_);
@@ -266,6 +273,50 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
       velocities[i] += change + spin.cross(positions[i] - center);
     }
   }
+  followRigidMove(offset_m, velocity_change_mps, spin_change_radps, center_m);
+}
+
+void ShapeMatchingBody::deferRigidMove(const Eigen::Vector3d& offset_m,
+                                       const Eigen::Vector3d& velocity_change_mps) {
+  if (!offset_m.allFinite()) throw std::invalid_argument("translation is not finite");
+  if (!velocity_change_mps.allFinite()) {
+    throw std::invalid_argument("velocity change is not finite");
+  }
+  // Two moves in a row are made one after the other, as moveRigidly would make them.
+  makeDeferredMove();
+  stopped_ = false;
+  for (int r = 0; r < 3; ++r) {
+    deferred_move_.offset[r] = offset_m[r];
+    deferred_move_.velocity_change[r] = velocity_change_mps[r];
+  }
+  deferred_move_.moves_positions = !offset_m.isZero(0.0);
+  deferred_move_.moves_velocities = !velocity_change_mps.isZero(0.0);
+  followRigidMove(offset_m, velocity_change_mps, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+}
+
+void ShapeMatchingBody::makeDeferredMove() const {
+  if (!deferred_move_.waiting()) return;
+  const detail::DeferredMove move = deferred_move_;
+  deferred_move_ = detail::DeferredMove{};
+  if (move.moves_positions) addToEveryPoint(Eigen::Vector3d(move.offset), positions_);
+  if (move.moves_velocities) addToEveryPoint(Eigen::Vector3d(move.velocity_change), velocities_);
+}
+
+Eigen::Vector3d ShapeMatchingBody::meanPosition() const {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  if (deferred_move_.moves_positions) {
+    const Eigen::Vector3d offset(deferred_move_.offset);
+    for (const auto& point : positions_) sum += point + offset;
+  } else {
+    for (const auto& point : positions_) sum += point;
+  }
+  return sum / static_cast<double>(positions_.size());
+}
+
+void ShapeMatchingBody::followRigidMove(const Eigen::Vector3d& offset_m,
+                                        const Eigen::Vector3d& velocity_change_mps,
+                                        const Eigen::Vector3d& spin_change_radps,
+                                        const Eigen::Vector3d& center_m) {
   const double offset_norm = offset_m.norm();
   for (std::size_t k = 0; k < clusters_.size(); ++k) {
     const Cluster& cluster = clusters_[k];
@@ -303,6 +354,7 @@ RigidMotion ShapeMatchingBody::rigidMotion() const {
 }
 
 void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements) {
+  makeDeferredMove();
   const bool repeats = validateDisplacements(displacements);
   const std::vector<PointDisplacement>& applied =
       repeats ? mergeRepeatedPoints(displacements) : displacements;
