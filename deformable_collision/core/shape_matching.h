@@ -214,7 +214,8 @@ class ShapeMatchingBody {
   /// moveRigidly(offset, velocity change), but the points move in the next step's pass over
   /// them, with the same bits as moved now: a response's whole-object move costs no pass of
   /// its own. The sums follow at once; positions() and velocities(), and every other
-  /// method, make the move first if they come before the step (the AVX-512 step too).
+  /// method, make the move first if they come before the step (the AVX-512 step too): two
+  /// threads reading the points at once then need the same care as a write.
   /// @throw std::invalid_argument if the offset or the velocity is not finite; the state is
   ///        then unchanged.
   void deferRigidMove(const Eigen::Vector3d& offset_m, const Eigen::Vector3d& velocity_change_mps);
