@@ -134,13 +134,30 @@ void Scene::Object::applyPendingDents(const std::vector<std::unique_ptr<Object>>
     // point's current velocity is compared with.
     const Eigen::Vector3d other_velocity =
         objects[pending.partner]->velocity_after - velocity_change;
-    const auto dent = [&](std::uint32_t point, double beyond_sum, std::uint32_t beyond_count) {
+    // The needs of the dent's contacts that need some, summed and counted: each contact's
+    // need along away is `reach(depth)`.
+    struct Beyond {
+      double sum_m = 0.0;
+      std::uint32_t count = 0;
+    };
+    const auto beyond = [&](const auto& reach) {
+      Beyond total;
+      for (std::uint32_t d = pending.first_depth; d != DentScratch::kNoDepth;
+           d = dents.depths[d].next) {
+        const double need = reach(dents.depths[d]);
+        if (need <= 0.0) continue;
+        total.sum_m += need;
+        ++total.count;
+      }
+      return total;
+    };
+    const auto dent = [&](std::uint32_t point, const Beyond& need) {
       if (dents.displacement_counts[point] == 0) dents.displaced_points.push_back(point);
-      dents.displacement_counts[point] += beyond_count;
-      dents.displacement_sums[point] += beyond_sum * pending.away;
+      dents.displacement_counts[point] += need.count;
+      dents.displacement_sums[point] += need.sum_m * pending.away;
       const double inward =
           std::min(0.0, (velocities[point] - other_velocity).dot(pending.away));
-      dents.velocity_change_sums[point] -= (beyond_count * inward) * pending.away;
+      dents.velocity_change_sums[point] -= (need.count * inward) * pending.away;
     };
     const SphereNode& node = tree.node(pending.node);
     const std::uint32_t* slots = tree.pointIndices().data() + node.first_point;
@@ -150,30 +167,16 @@ void Scene::Object::applyPendingDents(const std::vector<std::unique_ptr<Object>>
       // point's depth, given to all, would dent hundreds of points by what one needs.
       for (std::uint32_t s = 0; s < node.point_count; ++s) {
         const double along = positions[slots[s]].dot(pending.away) + moved;
-        double beyond_sum = 0.0;
-        std::uint32_t beyond_count = 0;
-        for (std::uint32_t d = pending.first_depth; d != DentScratch::kNoDepth;
-             d = dents.depths[d].next) {
-          const double beyond = dents.depths[d].surface_m - along;
-          if (beyond <= 0.0) continue;
-          beyond_sum += beyond;
-          ++beyond_count;
-        }
-        if (beyond_count > 0) dent(slots[s], beyond_sum, beyond_count);
+        const Beyond need = beyond(
+            [&](const DentScratch::DentDepth& depth) { return depth.surface_m - along; });
+        if (need.count > 0) dent(slots[s], need);
       }
       continue;
     }
-    double beyond_sum = 0.0;
-    std::uint32_t beyond_count = 0;
-    for (std::uint32_t d = pending.first_depth; d != DentScratch::kNoDepth;
-         d = dents.depths[d].next) {
-      const double beyond = dents.depths[d].depth_unmoved_m - moved;
-      if (beyond <= 0.0) continue;
-      beyond_sum += beyond;
-      ++beyond_count;
-    }
-    if (beyond_count == 0) continue;
-    for (std::uint32_t s = 0; s < node.point_count; ++s) dent(slots[s], beyond_sum, beyond_count);
+    const Beyond need =
+        beyond([&](const DentScratch::DentDepth& depth) { return depth.depth_unmoved_m - moved; });
+    if (need.count == 0) continue;
+    for (std::uint32_t s = 0; s < node.point_count; ++s) dent(slots[s], need);
   }
   dents.pending.clear();
   dents.depths.clear();
