@@ -113,9 +113,6 @@ struct ClusterSums {
   Eigen::Matrix3d second_moment = Eigen::Matrix3d::Zero();                  ///< sum w (x - ref)(x - ref)^T
 };
 
-/// One object simulated or registered by clustered meshless shape matching.
-/// Rest-shape precomputation happens once in the constructor; step() and track() are the
-/// per-cycle work and allocate nothing.
 namespace detail {
 
 /// A whole-object move the points have not made yet (ShapeMatchingBody::deferRigidMove):
@@ -140,6 +137,9 @@ struct DeferredMove {
 
 }  // namespace detail
 
+/// One object simulated or registered by clustered meshless shape matching.
+/// Rest-shape precomputation happens once in the constructor; step() and track() are the
+/// per-cycle work and allocate nothing.
 class ShapeMatchingBody {
  public:
   /// Runs the per-point passes of a step and of the fit residuals on vectors of up to

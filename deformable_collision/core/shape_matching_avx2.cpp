@@ -226,7 +226,9 @@ __attribute__((target("avx2"))) std::size_t moveExclusiveAvx2(
       loadPoints(cluster, slot, xs, x);
       loadPoints(cluster, slot, vs, v);
       if (motion.deferred.moves_positions) {
-        for (int r = 0; r < 3; ++r) x[r] = _mm256_add_pd(x[r], _mm256_set1_pd(motion.deferred.offset[r]));
+        for (int r = 0; r < 3; ++r) {
+          x[r] = _mm256_add_pd(x[r], _mm256_set1_pd(motion.deferred.offset[r]));
+        }
       }
       if (motion.deferred.moves_velocities) {
         for (int r = 0; r < 3; ++r) {
