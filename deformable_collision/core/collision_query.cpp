@@ -164,13 +164,10 @@ template <VectorWidth Width>
     if (!closestPairAllAtOnce(points_a, points_b, pair, counters)) return;
   } else if (Width == VectorWidth::kAvx2 && points_b.count <= 8) {
     // Larger leaves (a tree of leaf_size > 8) take the portable test below.
-    const LeafSpheres& spheres_b = b.leafSpheres();
-    if (!closestPairNearSphereAvx2(points_a.x, points_a.y, points_a.z, points_a.count, points_b.x,
-                                   points_b.y, points_b.z, points_b.count, spheres_b.x[leaf_b],
-                                   spheres_b.y[leaf_b], spheres_b.z[leaf_b],
-                                   spheres_b.radius[leaf_b] + contact_distance_m,
-                                   pair.squared_distance, pair.squared_distance, pair.offset_a,
-                                   pair.offset_b, counters.point_tests)) {
+    if (!closestPairOfEightAvx2(points_a.x, points_a.y, points_a.z, points_a.count, points_b.x,
+                                points_b.y, points_b.z, points_b.count, pair.squared_distance,
+                                pair.squared_distance, pair.offset_a, pair.offset_b,
+                                counters.point_tests)) {
       return;
     }
   } else

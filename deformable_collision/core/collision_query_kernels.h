@@ -185,66 +185,78 @@ __attribute__((target("avx2"))) inline double leastOfAvx2(__m256d values) {
   return _mm_cvtsd_f64(_mm_min_sd(halves, _mm_unpackhi_pd(halves, halves)));
 }
 
-/// The closest pair of a's points and up to eight points of b if it is below
-/// `below_squared`, the first in row-major order, testing only the points of a within
-/// `reach_m` of b's centre (b's radius plus the contact distance): the others cannot come
-/// close enough to any point of b, and most leaf pairs in reach have few such points.
-/// Four of a's points per instruction against the centre, then four of b's per instruction
-/// against each point of a that passes; `point_tests` counts as closestPairNearSphere does.
-__attribute__((target("avx2"))) inline bool closestPairNearSphereAvx2(
-    const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
-    const double* by, const double* bz, std::uint32_t count_b, double center_x, double center_y,
-    double center_z, double reach_m, double below_squared, double& nearest_squared,
-    std::uint32_t& offset_a, std::uint32_t& offset_b, std::size_t& point_tests) {
-  // Lanes past b's points hold an infinite x, so their distances are infinite, never least.
+/// Up to eight points as two halves of four; lanes past `count` hold an infinite x, so that
+/// their distances are infinite, never least.
+__attribute__((target("avx2"))) inline void loadEightAvx2(const double* xs, const double* ys,
+                                                         const double* zs, std::uint32_t count,
+                                                         __m256d (&x)[2], __m256d (&y)[2],
+                                                         __m256d (&z)[2]) {
   const __m256d infinity = _mm256_set1_pd(std::numeric_limits<double>::infinity());
-  __m256d x[2], y[2], z[2];
 #pragma GCC unroll 2
   for (int h = 0; h < 2; ++h) {
-    const __m256i lanes = lanesFromAvx2(4 * h, count_b);
-    x[h] = _mm256_blendv_pd(infinity, _mm256_maskload_pd(bx + 4 * h, lanes),
+    const __m256i lanes = lanesFromAvx2(4 * h, count);
+    x[h] = _mm256_blendv_pd(infinity, _mm256_maskload_pd(xs + 4 * h, lanes),
                             _mm256_castsi256_pd(lanes));
-    y[h] = _mm256_maskload_pd(by + 4 * h, lanes);
-    z[h] = _mm256_maskload_pd(bz + 4 * h, lanes);
+    y[h] = _mm256_maskload_pd(ys + 4 * h, lanes);
+    z[h] = _mm256_maskload_pd(zs + 4 * h, lanes);
   }
-  const __m256d cx = _mm256_set1_pd(center_x);
-  const __m256d cy = _mm256_set1_pd(center_y);
-  const __m256d cz = _mm256_set1_pd(center_z);
-  const __m256d reach_squared = _mm256_set1_pd(reach_m * reach_m);
-  point_tests += count_a;
-  bool found = false;
-  for (std::uint32_t first = 0; first < count_a; first += 4) {
-    const __m256i lanes = lanesFromAvx2(first, count_a);
-    const __m256d from_center = squaredDistancesAvx2(
-        cx, cy, cz, _mm256_maskload_pd(ax + first, lanes), _mm256_maskload_pd(ay + first, lanes),
-        _mm256_maskload_pd(az + first, lanes));
-    auto near_center = static_cast<std::uint32_t>(_mm256_movemask_pd(_mm256_and_pd(
-        _mm256_cmp_pd(from_center, reach_squared, _CMP_LT_OQ), _mm256_castsi256_pd(lanes))));
-    // In order of a's points, and only a strictly closer pair replaces the one found: the
-    // first pair in row-major order at the least distance.
-    while (near_center != 0) {
-      const std::uint32_t s = first + static_cast<std::uint32_t>(__builtin_ctz(near_center));
-      near_center &= near_center - 1;
-      point_tests += count_b;
-      const __m256d px = _mm256_broadcast_sd(ax + s);
-      const __m256d py = _mm256_broadcast_sd(ay + s);
-      const __m256d pz = _mm256_broadcast_sd(az + s);
-      const __m256d low = squaredDistancesAvx2(px, py, pz, x[0], y[0], z[0]);
-      const __m256d high = squaredDistancesAvx2(px, py, pz, x[1], y[1], z[1]);
-      const double least = leastOfAvx2(_mm256_min_pd(low, high));
-      if (!(least < below_squared)) continue;
-      const __m256d target = _mm256_set1_pd(least);
-      const auto at_least = static_cast<std::uint32_t>(
-          _mm256_movemask_pd(_mm256_cmp_pd(low, target, _CMP_EQ_OQ)) |
-          _mm256_movemask_pd(_mm256_cmp_pd(high, target, _CMP_EQ_OQ)) << 4);
-      below_squared = least;
+}
+
+/// Squared distances from (x, y, z) to eight points, four per half (squaredDistancesAvx2).
+__attribute__((target("avx2"))) inline void squaredDistancesToEightAvx2(
+    double x, double y, double z, const __m256d (&xs)[2], const __m256d (&ys)[2],
+    const __m256d (&zs)[2], __m256d& low, __m256d& high) {
+  const __m256d px = _mm256_set1_pd(x);
+  const __m256d py = _mm256_set1_pd(y);
+  const __m256d pz = _mm256_set1_pd(z);
+  low = squaredDistancesAvx2(px, py, pz, xs[0], ys[0], zs[0]);
+  high = squaredDistancesAvx2(px, py, pz, xs[1], ys[1], zs[1]);
+}
+
+/// The lanes of the eight distances (low, then high) equal to `value`, one bit each.
+__attribute__((target("avx2"))) inline std::uint32_t lanesAtAvx2(__m256d low, __m256d high,
+                                                                double value) {
+  const __m256d target = _mm256_set1_pd(value);
+  return static_cast<std::uint32_t>(_mm256_movemask_pd(_mm256_cmp_pd(low, target, _CMP_EQ_OQ)) |
+                                    _mm256_movemask_pd(_mm256_cmp_pd(high, target, _CMP_EQ_OQ))
+                                        << 4);
+}
+
+/// The closest pair of a's points and up to eight points of b if it is below
+/// `below_squared`, the first in row-major order. Every pair, four of b's points per
+/// instruction, the least distance kept per lane without a branch; only a least distance
+/// below `below_squared` is then looked for, in a second pass that stops at its first pair.
+/// Testing only the points of a near b's centre, with a branch per point on whether it came
+/// closer, tests fewer pairs but takes longer: most leaf pairs in reach have a point or two
+/// near, and whether one is, and whether it came closer, are coin tosses (S1 with thousands
+/// of contacts, S2's finest level). `point_tests` counts every pair.
+__attribute__((target("avx2"))) inline bool closestPairOfEightAvx2(
+    const double* ax, const double* ay, const double* az, std::uint32_t count_a, const double* bx,
+    const double* by, const double* bz, std::uint32_t count_b, double below_squared,
+    double& nearest_squared, std::uint32_t& offset_a, std::uint32_t& offset_b,
+    std::size_t& point_tests) {
+  __m256d x[2], y[2], z[2];
+  loadEightAvx2(bx, by, bz, count_b, x, y, z);
+  point_tests += count_a * count_b;
+  __m256d least_lanes = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  for (std::uint32_t s = 0; s < count_a; ++s) {
+    __m256d low, high;
+    squaredDistancesToEightAvx2(ax[s], ay[s], az[s], x, y, z, low, high);
+    least_lanes = _mm256_min_pd(least_lanes, _mm256_min_pd(low, high));
+  }
+  const double least = leastOfAvx2(least_lanes);
+  if (!(least < below_squared)) return false;
+  for (std::uint32_t s = 0;; ++s) {
+    __m256d low, high;
+    squaredDistancesToEightAvx2(ax[s], ay[s], az[s], x, y, z, low, high);
+    const std::uint32_t at_least = lanesAtAvx2(low, high, least);
+    if (at_least != 0) {
       nearest_squared = least;
       offset_a = s;
       offset_b = static_cast<std::uint32_t>(__builtin_ctz(at_least));
-      found = true;
+      return true;
     }
   }
-  return found;
 }
 
 /// reachMask, four spheres per instruction.

@@ -190,6 +190,38 @@ TEST_P(VectorWidthTest, FindsTheSameContactsBitForBit) {
   }
 }
 
+// Two blocks of points on grids of 1/128 m, the second offset by half a step across the gap,
+// so that coordinates and squared distances are exact: a point of the first block has four
+// points of the second at its least distance, many of its neighbours have too, and each width
+// reports the first such pair in the leaves' row-major order, as the portable test does.
+TEST_P(VectorWidthTest, BreaksTiesAsThePortableTestDoes) {
+  if (widestVectors() < GetParam()) GTEST_SKIP() << "this CPU has not these vectors";
+  const auto block = [](const Eigen::Vector3d& corner) {
+    Points points;
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 8; ++j) {
+        for (int k = 0; k < 8; ++k) points.push_back(corner + Eigen::Vector3d(i, j, k) / 128.0);
+      }
+    }
+    return points;
+  };
+  TwoBodies scene{ShapeMatchingBody(block(Eigen::Vector3d::Zero()), ShapeMatchingConfig{}),
+                  ShapeMatchingBody(block(Eigen::Vector3d(7.0, 0.5, 0.5) / 128.0),
+                                    ShapeMatchingConfig{})};
+  for (const SphereTreeConfig& config : {SphereTreeConfig{2, 8}, SphereTreeConfig{2, 5}}) {
+    SphereTree ta(scene.a, config);
+    SphereTree tb(scene.b, config);
+    const int leaves = std::max(ta.maxLevel(), tb.maxLevel());
+    std::vector<SphereContact> portable;
+    std::vector<SphereContact> wide;
+    QueryCounters counters;
+    HierarchyQuery(VectorWidth::kPortable).collide(ta, tb, leaves, 0.02, portable, counters);
+    HierarchyQuery(GetParam()).collide(ta, tb, leaves, 0.02, wide, counters);
+    ASSERT_FALSE(portable.empty());
+    expectSameContacts(wide, portable);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Widths, VectorWidthTest,
                          ::testing::Values(VectorWidth::kAvx2, VectorWidth::kAvx512),
                          [](const auto& info) {
