@@ -126,7 +126,7 @@ struct ClosestPair {
                                                   const ClosestPair& pair,
                                                   double contact_distance_m,
                                                   ContactSink& contacts) {
-  SphereContact& contact = contacts.add();
+  SphereContact contact;
   contact.node_a = a.leafNode(leaf_a);
   contact.node_b = b.leafNode(leaf_b);
   contact.level = std::max(a.leafLevel(leaf_a), b.leafLevel(leaf_b));
@@ -145,6 +145,7 @@ struct ClosestPair {
   contact.depth_m = contact_distance_m - distance_m;
   // Position and depth are those of a closest pair itself.
   contact.error_bound_m = 0.0;
+  contacts.add(contact);
 }
 
 /// Adds the contact of the leaves at `leaf_a` and `leaf_b` in the trees' leaf orders if a
@@ -412,7 +413,7 @@ struct HierarchyQuery::Descent {
   /// The contact of two nodes above the leaves, with the pair's least overlap as its depth.
   [[gnu::always_inline]] void addNodeContact(const PendingPair& pair, const NodeState& na,
                                              const NodeState& nb) const {
-    SphereContact& contact = contacts.add();
+    SphereContact contact;
     contact.node_a = pair.node_a;
     contact.node_b = pair.node_b;
     contact.level = std::max(na.level, nb.level);
@@ -427,6 +428,7 @@ struct HierarchyQuery::Descent {
         sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
     contact.position = 0.5 * (surface_a + surface_b);
     contact.error_bound_m = nodeContactErrorBound(sa, sb, contact.depth_m, contact_distance_m);
+    contacts.add(contact);
   }
 
   /// The contacts of a pair within reach at which the descent ends on both sides.
@@ -513,7 +515,7 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
                              const PairSlabs& slabs) {
   struct Appender final : ContactSink {
     explicit Appender(std::vector<SphereContact>& contacts) : contacts(contacts) {}
-    SphereContact& add() override { return contacts.emplace_back(); }
+    void add(const SphereContact& contact) override { contacts.push_back(contact); }
     std::vector<SphereContact>& contacts;
   } appender(contacts);
   collide(a, b, level, contact_distance_m, appender, counters, slabs);

@@ -40,8 +40,9 @@ struct SphereContact {
 /// (a scene tags each with its two objects) without copying them afterwards.
 class ContactSink {
  public:
-  /// A default record for one more contact, which the query then fills in.
-  virtual SphereContact& add() = 0;
+  /// One more contact, composed by the query before it is handed over: a default record
+  /// filled in place would be cleared first, a store loop slower than the contact itself.
+  virtual void add(const SphereContact& contact) = 0;
 
  protected:
   ~ContactSink() = default;

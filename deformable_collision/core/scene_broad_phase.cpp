@@ -12,8 +12,8 @@ class PairContacts final : public ContactSink {
  public:
   PairContacts(std::vector<SceneContact>& contacts, std::uint32_t object_a, std::uint32_t object_b)
       : contacts_(contacts), object_a_(object_a), object_b_(object_b) {}
-  SphereContact& add() override {
-    return contacts_.emplace_back(SceneContact{object_a_, object_b_, SphereContact{}}).contact;
+  void add(const SphereContact& contact) override {
+    contacts_.push_back(SceneContact{object_a_, object_b_, contact});
   }
 
  private:
