@@ -246,6 +246,8 @@ __attribute__((target("avx2"))) inline bool closestPairOfEightAvx2(
   }
   const double least = leastOfAvx2(least_lanes);
   if (!(least < below_squared)) return false;
+  // The same sums as above (the core is built with -ffp-contract=off), so some point of a
+  // meets `least` again before the last.
   for (std::uint32_t s = 0;; ++s) {
     __m256d low, high;
     squaredDistancesToEightAvx2(ax[s], ay[s], az[s], x, y, z, low, high);
