@@ -22,6 +22,23 @@ class PairContacts final : public ContactSink {
   std::uint32_t object_b_;
 };
 
+bool movesOnlyRigidly(const ObjectKind kind) {
+  return kind == ObjectKind::kStatic || kind == ObjectKind::kKinematic;
+}
+
+/// The level the query of objects a and b runs to at the scene's `level`. An object that
+/// moves only rigidly meets one that ends at or above `level` at its own leaves: its tree
+/// costs nothing to keep, its slabs prune the descent there, and a leaf contact costs the
+/// response a point pair, where its coarse nodes at `level` would reach far more of the
+/// other's leaves than its points do (a floor's level 7 against a pile object's leaves).
+int queryLevel(int level, const SphereTree& a, ObjectKind kind_a, const SphereTree& b,
+               ObjectKind kind_b) {
+  const bool rigid_a = movesOnlyRigidly(kind_a);
+  if (rigid_a == movesOnlyRigidly(kind_b)) return level;
+  const SphereTree& deforming = rigid_a ? b : a;
+  return level >= deforming.maxLevel() ? std::max(a.maxLevel(), b.maxLevel()) : level;
+}
+
 }  // namespace
 
 void Scene::updateSweepBoxes() {
@@ -138,8 +155,8 @@ void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second,
   Object& b = *objects_[second];
   const PairSlabs slabs{a.slabs.empty() ? nullptr : &a.slabs,
                         b.slabs.empty() ? nullptr : &b.slabs};
-  query_.collide(a.tree, b.tree, level, config_.contact_distance_m, pair_contacts,
-                 query_counters_, slabs);
+  query_.collide(a.tree, b.tree, queryLevel(level, a.tree, a.config.kind, b.tree, b.config.kind),
+                 config_.contact_distance_m, pair_contacts, query_counters_, slabs);
   if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
 }
 

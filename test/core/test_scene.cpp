@@ -635,6 +635,47 @@ TEST(Scene, LevelSwitchesBetweenCyclesAndQueriesLeaveItAlone) {
   EXPECT_THROW(scene->contactsAt(0, 99, std::nullopt, finest), std::out_of_range);
 }
 
+// A level at or past a deforming object's leaves gains nothing from stopping a static
+// object's descent there: the floor meets the ball at its own leaves, as at the finest
+// level, and only a level above the ball's leaves gives coarse contacts.
+TEST(Scene, AFixedObjectMeetsAnObjectAtItsLeavesAtItsOwnLeaves) {
+  ObjectConfig ball;
+  ball.name = "ball";
+  Points points = sampleEllipsoid(300, {0.05, 0.05, 0.05}, 4);
+  for (auto& p : points) p.z() += 0.055;  // 5 mm above the floor, within the contact distance
+  Scene alone{SceneConfig{}};
+  alone.addObject(ball, points);
+  const int ball_leaves = alone.maxLevel();
+  auto scene = sceneOnFloor(-1);
+  scene->addObject(ball, points);
+  ASSERT_GT(scene->maxLevel(), ball_leaves) << "the floor must be the deeper tree";
+
+  std::vector<SceneContact> finest, at_level;
+  scene->contactsAt(scene->maxLevel(), std::nullopt, std::nullopt, finest);
+  ASSERT_FALSE(finest.empty());
+  for (int level = ball_leaves; level < scene->maxLevel(); ++level) {
+    scene->contactsAt(level, std::nullopt, std::nullopt, at_level);
+    ASSERT_EQ(at_level.size(), finest.size()) << "level " << level;
+    for (std::size_t k = 0; k < finest.size(); ++k) {
+      const SphereContact& got = at_level[k].contact;
+      const SphereContact& want = finest[k].contact;
+      EXPECT_EQ(std::tie(got.node_a, got.node_b, got.point_a, got.point_b, got.level),
+                std::tie(want.node_a, want.node_b, want.point_a, want.point_b, want.level))
+          << "level " << level << ", contact " << k;
+      EXPECT_EQ(got.position, want.position) << "level " << level << ", contact " << k;
+      EXPECT_EQ(got.depth_m, want.depth_m) << "level " << level << ", contact " << k;
+    }
+  }
+
+  const int coarse = ball_leaves - 1;
+  scene->contactsAt(coarse, std::nullopt, std::nullopt, at_level);
+  ASSERT_FALSE(at_level.empty());
+  for (const auto& c : at_level) {
+    EXPECT_LE(c.contact.level, coarse);
+    EXPECT_EQ(c.contact.point_a, SphereContact::kNoPoint) << "a point pair only at the leaves";
+  }
+}
+
 TEST(Scene, LevelMinusOneStaysTheFinestWhenDeeperObjectsCome) {
   const auto add = [](Scene& scene, const std::string& name, std::size_t points) {
     ObjectConfig object;
