@@ -182,6 +182,7 @@ class SphereTree {
   /// leafSlotStarts()[ordinal] up to leafSlotStarts()[ordinal + 1].
   const std::vector<std::uint32_t>& leafSlotStarts() const { return leaf_slot_starts_; }
 
+  /// Node `index`; 0 is the root, and children always come after their parent.
   const SphereNode& node(std::uint32_t index) const { return nodes_[index]; }
   std::size_t nodeCount() const { return nodes_.size(); }
   /// Deepest level; leaves may also sit higher in smaller clusters.

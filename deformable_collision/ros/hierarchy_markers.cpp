@@ -66,6 +66,18 @@ void HierarchyMarkers::build(Scene& scene, int level, const std::vector<SceneCon
     colliding_[c.object_a][c.contact.node_a] = 1;
     colliding_[c.object_b][c.contact.node_b] = 1;
   }
+  // A static or kinematic object meets an object at its leaves at its own leaves, below
+  // the level drawn: its sphere there is in contact if one of its nodes is. Children
+  // follow their parent in a tree's nodes, so a backward sweep sees them first.
+  for (std::size_t o = 0; o < objects; ++o) {
+    const SphereTree& tree = scene.tree(o);
+    for (std::uint32_t n = tree.nodeCount(); n-- > 0;) {
+      const SphereNode& node = tree.node(n);
+      for (std::uint32_t c = node.first_child; c < node.first_child + node.child_count; ++c) {
+        colliding_[o][n] |= colliding_[o][c];
+      }
+    }
+  }
 
   const std_msgs::ColorRGBA hit = collidingColor();
   std::map<int, std::size_t> marker_of_step;

@@ -23,7 +23,8 @@ double drawnRadius(double radius_m, double center_norm_m);
 class HierarchyMarkers {
  public:
   /// Spheres of `level` (leaves above it stand for themselves), on the current state.
-  /// `contacts` mark the colliding spheres; with `colliding_only` only those are drawn.
+  /// `contacts` mark the colliding spheres, and a sphere over a colliding one below `level`
+  /// (a static object's leaves in a contact); with `colliding_only` only those are drawn.
   void build(Scene& scene, int level, const std::vector<SceneContact>& contacts,
              bool colliding_only, const std_msgs::Header& header,
              visualization_msgs::MarkerArray& markers);

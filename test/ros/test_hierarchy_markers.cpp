@@ -2,12 +2,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <random>
 #include <set>
 
 #include "deformable_collision/scenes/demo_scenes.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {
@@ -121,6 +123,67 @@ TEST(HierarchyMarkers, CollidingSpheresAreHighlightedAndCanBeDrawnAlone) {
   EXPECT_GT(count_all, red_all);
   EXPECT_EQ(red_only, colliding.size());
   EXPECT_EQ(count_only, colliding.size());
+}
+
+// A static floor meets a small ball at its own leaves once the level reaches the ball's:
+// the floor's spheres drawn at that level are highlighted over the leaves in contact.
+TEST(HierarchyMarkers, ASphereOverAContactBelowTheLevelIsHighlighted) {
+  SceneConfig config;
+  config.contact_distance_m = 0.02;
+  Scene scene(config);
+  ObjectConfig floor;
+  floor.name = "floor";
+  floor.kind = ObjectKind::kStatic;
+  std::vector<Eigen::Vector3d> floor_points;
+  for (int i = -20; i <= 20; ++i) {
+    for (int j = -20; j <= 20; ++j) floor_points.emplace_back(0.02 * i, 0.02 * j, 0.0);
+  }
+  scene.addObject(floor, floor_points);
+  ObjectConfig ball;
+  ball.name = "ball";
+  std::vector<Eigen::Vector3d> ball_points = sampleEllipsoid(300, {0.05, 0.05, 0.05}, 4);
+  for (auto& p : ball_points) p.z() += 0.06;
+  const std::size_t ball_index = scene.addObject(ball, ball_points);
+  const int level = scene.tree(ball_index).maxLevel();
+  ASSERT_LT(level, scene.maxLevel()) << "the floor must be the deeper tree";
+
+  std::vector<SceneContact> contacts;
+  scene.contactsAt(level, std::nullopt, std::nullopt, contacts);
+  bool below_level = false;
+  for (const auto& c : contacts) below_level |= c.contact.level > level;
+  ASSERT_TRUE(below_level) << "no contact of the floor's leaves below the level";
+
+  // The spheres drawn at the level with a contact node under them (leaf ranges nest).
+  std::size_t expected = 0;
+  for (std::size_t o = 0; o < scene.objectCount(); ++o) {
+    const SphereTree& tree = scene.tree(o);
+    for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
+      const SphereNode& drawn = tree.node(n);
+      // The level's cut: where descents from the root end.
+      if (!endsDescentToLevel(drawn, level) || drawn.level > level) continue;
+      const bool over_contact = std::any_of(contacts.begin(), contacts.end(), [&](const auto& c) {
+        if (c.object_a != o && c.object_b != o) return false;
+        const SphereNode& touched =
+            tree.node(c.object_a == o ? c.contact.node_a : c.contact.node_b);
+        return touched.first_leaf >= drawn.first_leaf &&
+               touched.first_leaf < drawn.first_leaf + drawn.leaf_count;
+      });
+      expected += over_contact;
+    }
+  }
+  HierarchyMarkers builder;
+  visualization_msgs::MarkerArray only_colliding;
+  builder.build(scene, level, contacts, true, std_msgs::Header(), only_colliding);
+  std::size_t drawn = 0, red = 0;
+  for (const Marker& marker : only_colliding.markers) {
+    for (const auto& color : marker.colors) {
+      red += color.r == 1.0f && color.g < 0.2f && color.a > 0.8f;
+      ++drawn;
+    }
+  }
+  EXPECT_GT(expected, 0u);
+  EXPECT_EQ(drawn, expected);
+  EXPECT_EQ(red, expected);
 }
 
 }  // namespace
