@@ -286,7 +286,8 @@ class Scene {
   void queueDents(const ResolvingPair& pair);
   void rememberSide(const ResolvingPair& pair, const Eigen::Vector3d& normal);
   void exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& normal);
-  void holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
+  /// Whether the pair sticks: its slip is taken back.
+  bool holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
                           double share_a) const;
 
   /// One contact's push: depths along `normal` (from b to a) that a and b must move.

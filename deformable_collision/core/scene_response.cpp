@@ -25,6 +25,13 @@ Eigen::Vector3d stopApproach(const Eigen::Vector3d& relative, const Eigen::Vecto
   return change;
 }
 
+/// The change of a's velocity relative to b's that stops their approach along `normal` and
+/// all their sliding across it (static friction).
+Eigen::Vector3d stopSliding(const Eigen::Vector3d& relative, const Eigen::Vector3d& normal) {
+  const double along = relative.dot(normal);
+  return -std::min(0.0, along) * normal - (relative - along * normal);
+}
+
 }  // namespace
 
 namespace scene_internal {
@@ -564,7 +571,6 @@ void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& norma
       a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
   const Eigen::Vector3d velocity_b =
       b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
-  const Eigen::Vector3d change = stopApproach(velocity_a - velocity_b, normal, config_.friction);
   // Shock propagation (Guendelman et al. 2003): of two touching objects, the one nearer to
   // a fixed support acts as fixed, so that pushes never drive an object into what carries
   // it, such as the bottom of a pile into the floor or a wall.
@@ -573,7 +579,14 @@ void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& norma
   const double inverse_mass_b =
       b.dynamic() && b.support_depth >= a.support_depth ? 1.0 / b.body.config().mass_kg : 0.0;
   const double share_a = inverse_mass_a / (inverse_mass_a + inverse_mass_b);
-  holdStaticFriction(pair, normal, share_a);
+  // A pair that sticks in position sticks in velocity too: a sliding velocity kept while
+  // the slip is taken back each cycle moves nothing, and it stays. On a coarse normal tilted
+  // past the friction cone, a resting object kept sliding down it at a steady few cm/s while
+  // its position stood still, and the objects it carried took that velocity on.
+  const Eigen::Vector3d relative = velocity_a - velocity_b;
+  const Eigen::Vector3d change = holdStaticFriction(pair, normal, share_a)
+                                     ? stopSliding(relative, normal)
+                                     : stopApproach(relative, normal, config_.friction);
   if (a.dynamic()) {
     a.translation += pair.move_a;
     a.velocity_change += share_a * change;
@@ -596,7 +609,7 @@ void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& norma
 // before this pair), not along the normal: a coarse normal between two dynamic objects
 // tilts by some degrees, and a box in a stack, lifted a little along it each cycle and
 // falling back straight, would walk off the box below.
-void Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
+bool Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
                                double share_a) const {
   const Object& a = pair.a;
   const Object& b = pair.b;
@@ -607,7 +620,7 @@ void Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& norma
   const Eigen::Vector3d slip = moved - moved.dot(normal) * normal;
   const double pressed = (pair.move_a - pair.move_b).dot(normal);
   const bool one_side_holds = share_a == 0.0 || share_a == 1.0;
-  if (!one_side_holds || slip.norm() > config_.friction * pressed) return;
+  if (!one_side_holds || slip.norm() > config_.friction * pressed) return false;
   const Eigen::Vector3d came =
       (step_b + pair.translation_before_b) - (step_a + pair.translation_before_a);
   const double came_along = came.dot(normal);
@@ -617,6 +630,7 @@ void Scene::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& norma
   }
   pair.move_a += share_a * change;
   pair.move_b -= (1.0 - share_a) * change;
+  return true;
 }
 
 // Whether a run links its objects in rankSupport. Between dynamic objects always; between a

@@ -492,6 +492,48 @@ INSTANTIATE_TEST_SUITE_P(
                       SceneCase{"pile", DemoScene::kPile, 15000, 120, 1}),
     [](const auto& info) { return std::string(info.param.name); });
 
+// ---------------------------------------------------------------------------------------
+// An object that stays put carries no velocity. Where static friction holds a pair in place
+// (its slip taken back), a sliding velocity along a coarse normal tilted past the friction
+// cone used to stay: the object stood still while its velocity pointed down the slope at
+// several cm/s, every cycle, and the objects it carried took that velocity on.
+
+struct PileCase {
+  std::size_t points;
+  int level;
+};
+
+void PrintTo(const PileCase& c, std::ostream* os) {
+  *os << c.points << " points, level " << c.level;
+}
+
+class StillObjectTest : public ::testing::TestWithParam<PileCase> {};
+
+TEST_P(StillObjectTest, CarriesNoVelocity) {
+  const auto& c = GetParam();
+  auto scene = makeDemoScene(DemoScene::kPile, c.points);
+  for (int cycle = 0; cycle < 150; ++cycle) scene->cycle();  // settles at the finest level
+  scene->setLevel(c.level);
+  std::vector<Eigen::Vector3d> before(scene->objectCount());
+  for (int cycle = 0; cycle < 60; ++cycle) {
+    for (std::size_t o = 0; o < scene->objectCount(); ++o) before[o] = scene->body(o).meanPosition();
+    scene->cycle();
+    if (cycle < 40) continue;  // the level's first cycles move objects apart to its spheres
+    for (std::size_t o = 0; o < scene->objectCount(); ++o) {
+      if (scene->objectConfig(o).kind != ObjectKind::kDynamic) continue;
+      const double moved_mps =
+          (scene->body(o).meanPosition() - before[o]).norm() / scene->config().dt_s;
+      if (moved_mps >= 0.005) continue;
+      EXPECT_LT(scene->body(o).meanVelocity().norm(), 0.05)
+          << scene->objectConfig(o).name << " moved " << moved_mps << " m/s in cycle " << cycle;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Piles, StillObjectTest,
+                         ::testing::Values(PileCase{30000, 2}, PileCase{60000, 2},
+                                           PileCase{60000, 4}));
+
 // The broad phase (sweep, boxes, root spheres) and the query together miss nothing: at the
 // leaves, a settling pile's contacts cover exactly the point pairs closer than the contact
 // distance of every pair of objects, walls and floor included.
