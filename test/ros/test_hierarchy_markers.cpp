@@ -92,6 +92,18 @@ TEST_P(MarkerLevelTest, EveryPublishedPointLiesInADrawnSphereOfItsObject) {
 
 INSTANTIATE_TEST_SUITE_P(Levels, MarkerLevelTest, ::testing::Values(0, 1, 3, 6, 100));
 
+/// The spheres drawn in the contact colour, and all spheres drawn.
+std::pair<std::size_t, std::size_t> highlighted(const visualization_msgs::MarkerArray& array) {
+  std::size_t red = 0, all = 0;
+  for (const Marker& marker : array.markers) {
+    for (const auto& color : marker.colors) {
+      red += color.r == 1.0f && color.g < 0.2f && color.a > 0.8f;
+      ++all;
+    }
+  }
+  return {red, all};
+}
+
 TEST(HierarchyMarkers, CollidingSpheresAreHighlightedAndCanBeDrawnAlone) {
   auto scene = squeezedGripper();
   const int level = 7;  // fine enough that some spheres are clear of every contact
@@ -103,16 +115,6 @@ TEST(HierarchyMarkers, CollidingSpheresAreHighlightedAndCanBeDrawnAlone) {
     colliding.emplace(scene->objectConfig(c.object_a).name, c.contact.node_a);
     colliding.emplace(scene->objectConfig(c.object_b).name, c.contact.node_b);
   }
-  const auto highlighted = [](const visualization_msgs::MarkerArray& array) {
-    std::size_t red = 0, all = 0;
-    for (const Marker& marker : array.markers) {
-      for (const auto& color : marker.colors) {
-        red += color.r == 1.0f && color.g < 0.2f && color.a > 0.8f;
-        ++all;
-      }
-    }
-    return std::pair{red, all};
-  };
   HierarchyMarkers builder;
   visualization_msgs::MarkerArray everything, only_colliding;
   builder.build(*scene, level, contacts, false, std_msgs::Header(), everything);
@@ -174,13 +176,7 @@ TEST(HierarchyMarkers, ASphereOverAContactBelowTheLevelIsHighlighted) {
   HierarchyMarkers builder;
   visualization_msgs::MarkerArray only_colliding;
   builder.build(scene, level, contacts, true, std_msgs::Header(), only_colliding);
-  std::size_t drawn = 0, red = 0;
-  for (const Marker& marker : only_colliding.markers) {
-    for (const auto& color : marker.colors) {
-      red += color.r == 1.0f && color.g < 0.2f && color.a > 0.8f;
-      ++drawn;
-    }
-  }
+  const auto [red, drawn] = highlighted(only_colliding);
   EXPECT_GT(expected, 0u);
   EXPECT_EQ(drawn, expected);
   EXPECT_EQ(red, expected);
