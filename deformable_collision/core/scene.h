@@ -145,7 +145,9 @@ class Scene {
   void cycle();
 
   /// Changes the level of the next cycles (no other cost); -1 is the finest, as in
-  /// SceneConfig, and stays the finest when deeper objects come. Leaves budget mode.
+  /// SceneConfig, and stays the finest when deeper objects come. Leaves budget mode. At any
+  /// level, a static or kinematic object meets a tracked or dynamic one whose hierarchy
+  /// ends at or above the level at its own leaves, as at the finest level.
   /// @throw std::out_of_range if level is not -1 or in [0, maxLevel()].
   void setLevel(int level);
   /// Set: from the next cycle on, each cycle runs at the finest level expected to fit

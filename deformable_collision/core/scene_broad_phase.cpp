@@ -22,7 +22,7 @@ class PairContacts final : public ContactSink {
   std::uint32_t object_b_;
 };
 
-bool movesOnlyRigidly(const ObjectKind kind) {
+bool movesOnlyRigidly(ObjectKind kind) {
   return kind == ObjectKind::kStatic || kind == ObjectKind::kKinematic;
 }
 
