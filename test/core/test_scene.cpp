@@ -701,11 +701,8 @@ TEST(Scene, AFixedObjectMeetsAnObjectAtItsLeavesAtItsOwnLeaves) {
   ball.name = "ball";
   Points points = sampleEllipsoid(300, {0.05, 0.05, 0.05}, 4);
   for (auto& p : points) p.z() += 0.055;  // 5 mm above the floor, within the contact distance
-  Scene alone{SceneConfig{}};
-  alone.addObject(ball, points);
-  const int ball_leaves = alone.maxLevel();
   auto scene = sceneOnFloor(-1);
-  scene->addObject(ball, points);
+  const int ball_leaves = scene->tree(scene->addObject(ball, points)).maxLevel();
   ASSERT_GT(scene->maxLevel(), ball_leaves) << "the floor must be the deeper tree";
 
   std::vector<SceneContact> finest, at_level;
