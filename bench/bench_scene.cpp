@@ -14,7 +14,10 @@
 //     cycles from the same settled state, with a budget of half the finest level's
 //     detection + response in this run: the share of cycles within it (of all, and of those
 //     after the first 20, in which the level climbs from 0), the levels picked and the mean
-//     cost. -> s2.csv, s2_state.csv, s2_auto.csv, baselines.csv
+//     cost. Last, rest: the pile dropped and run at each level from 0 to the finest for 300
+//     cycles from the start, the mean point speed over its last 50 cycles (mean, largest,
+//     and after the last) and its end state's depths. -> s2.csv, s2_state.csv, s2_auto.csv,
+//     s2_rest.csv, baselines.csv
 //   s3 results_dir [settle=150] [cycles=100]
 //     Three objects (19k points) at the finest level, stage by stage, with the conversion
 //     of every object's points to a PointCloud2 as the node publishes them. -> s3.csv,
@@ -221,6 +224,50 @@ bool runCoarserLevels(int settle, int cycles, const std::vector<Eigen::Vector3d>
   return true;
 }
 
+/// The pile dropped and run at one level for kCycles: whether it comes to rest there.
+struct RestRun {
+  static constexpr int kCycles = 300;
+  static constexpr int kLateCycles = 50;  ///< Over which the speed is taken.
+  double late_mean_speed_mps = 0.0;
+  double late_largest_speed_mps = 0.0;
+  LevelEnd end;
+};
+
+RestRun runRest(int level) {
+  auto scene = dc::makeDemoScene(dc::DemoScene::kPile);
+  scene->setLevel(level);
+  RestRun run;
+  for (int c = 0; c < RestRun::kCycles; ++c) {
+    scene->cycle();
+    if (c < RestRun::kCycles - RestRun::kLateCycles) continue;
+    const double speed = describePile(*scene).speed_mps;
+    run.late_mean_speed_mps += speed / RestRun::kLateCycles;
+    run.late_largest_speed_mps = std::max(run.late_largest_speed_mps, speed);
+  }
+  run.end = describeEnd(*scene);
+  return run;
+}
+
+void reportRest(const std::string& results_dir, int finest) {
+  std::printf(
+      "\nrest: the pile dropped and run at each level for %d cycles; mean point speed over the "
+      "last %d\n\n| level | mean speed m/s | largest m/s | after the last m/s | deepest m | "
+      "mean depth m |\n|---|---|---|---|---|---|\n",
+      RestRun::kCycles, RestRun::kLateCycles);
+  db::CsvAppender csv(results_dir + "/s2_rest.csv",
+                      "level,cycles,late_cycles,late_mean_speed_mps,late_largest_speed_mps,"
+                      "end_speed_mps,deepest_m,mean_depth_m");
+  for (int level = 0; level <= finest; ++level) {
+    const RestRun run = runRest(level);
+    std::printf("| %d | %.4f | %.4f | %.4f | %.4f | %.5f |\n", level, run.late_mean_speed_mps,
+                run.late_largest_speed_mps, run.end.speed_mps, run.end.deepest_m,
+                run.end.mean_depth_m);
+    std::fprintf(csv.file(), "%d,%d,%d,%.6f,%.6f,%.6f,%.6f,%.6f\n", level, RestRun::kCycles,
+                 RestRun::kLateCycles, run.late_mean_speed_mps, run.late_largest_speed_mps,
+                 run.end.speed_mps, run.end.deepest_m, run.end.mean_depth_m);
+  }
+}
+
 /// Cycles in budget mode from the settled pile: what they cost and which levels they ran at.
 struct AutoRun {
   static constexpr int kClimbCycles = 20;
@@ -342,6 +389,7 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
   const std::optional<AutoRun> run = runAuto(settle, cycles, settled_points, budget_ms);
   if (!run) return 1;
   reportAuto(results_dir, *run, cycles, budget_ms, finest_total_ms);
+  reportRest(results_dir, finest);
   return 0;
 }
 

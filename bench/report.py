@@ -2,7 +2,7 @@
 """Writes the benchmark report from the CSV files of scripts/run_benchmarks.
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s2_auto.csv,
-s3.csv, baselines.csv, memory.csv and registration.txt there; writes s1.md, s2.md, s3.md, memory.md,
+s2_rest.csv, s3.csv, baselines.csv, memory.csv and registration.txt there; writes s1.md, s2.md, s3.md, memory.md,
 summary.md (the targets, met or not) and the plots s1_time_vs_points.png,
 s2_error_vs_time.png, registration_error_vs_time.png.
 Run by Debian's python3 (python3-matplotlib).
@@ -176,7 +176,22 @@ def distinct_levels(rows):
     return [r for r in rows[:-1] if r["level"] not in same] + [rows[-1]]
 
 
-def s2_level_targets(rows):
+def s2_rest_target(rest):
+    """The rest target: levels 1 to the finest, as the level table; level 0 stated beside."""
+    above = [r for r in rest if int(r["level"]) >= 1]
+    fastest = max(above, key=lambda r: float(r["late_largest_speed_mps"]))
+    root = [r for r in rest if int(r["level"]) == 0]
+    cycles, late = rest[0]["cycles"], rest[0]["late_cycles"]
+    return (f"S2: mean point speed < 5 mm/s after {cycles} cycles at each level (the dropped "
+            f"pile), at every one of the last {late}",
+            f"at most {1000 * float(fastest['late_largest_speed_mps']):.1f} mm/s (level "
+            f"{fastest['level']}), levels 1 to {above[-1]['level']}" +
+            (f"; level 0 (each object one sphere, not in the level table): "
+             f"{1000 * float(root[0]['late_largest_speed_mps']):.1f} mm/s" if root else ""),
+            "**met**" if float(fastest["late_largest_speed_mps"]) < 0.005 else "**not met**")
+
+
+def s2_level_targets(rows, rest):
     """The target rows of S2's levels (issue: level of detail that pays)."""
     finest = rows[-1]
     finest_total = float(finest["total_ms"])
@@ -191,7 +206,6 @@ def s2_level_targets(rows):
     falls = [(a["level"], b["level"]) for a, b in zip(distinct, distinct[1:])
              if float(b["total_ms"]) < float(a["total_ms"]) * (1.0 - tolerance)]
     front = pareto_levels(distinct)
-    slowest_rest = max(rows, key=lambda r: float(r["speed_after_mps"]))
     noise_text = (f"{100 * noise:.0f}%, the spread of the levels that run the finest query"
                   if noise is not None else "not measured (no level repeats the finest query)")
     return [
@@ -212,15 +226,13 @@ def s2_level_targets(rows):
          "**met**" if not falls else "**not met**"),
         ("S2: the Pareto front of (time, RMS error) holds >= 4 levels",
          f"levels {', '.join(front)}", "**met**" if len(front) >= 4 else "**not met**"),
-        ("S2: mean point speed < 5 mm/s after each level's cycles",
-         f"at most {1000 * float(slowest_rest['speed_after_mps']):.1f} mm/s (level "
-         f"{slowest_rest['level']})",
-         "**met**" if float(slowest_rest["speed_after_mps"]) < 0.005 else "**not met**"),
+        s2_rest_target(rest),
     ]
 
 
 def s2_report(results):
     rows = read(results, "s2.csv")
+    rest = read(results, "s2_rest.csv")
     state = read(results, "s2_state.csv")[0]
     base = baseline(results, "s2")
     text = "# S2: the pile at every level\n\n"
@@ -238,7 +250,9 @@ def s2_report(results):
              "response puts touching objects) after the cycles, over the finest level's contacts. "
              "Whole cycle: shape matching, detection and response. Mean point speed when settled "
              f"{float(state['mean_point_speed_mps']):.3f} m/s; the speed after each level's cycles "
-             "is in the table.\n\n")
+             "is in the table (a switch starts from the coarse spheres' overlaps, which the "
+             "response clears by moving objects apart; the pile settles again from there: see "
+             "Rest below).\n\n")
     body = [(r["level"], f"{float(r['contacts']):.0f}", f"{float(r['detection_ms']):.2f}",
              f"{float(r['response_ms']):.2f}", f"{float(r['total_ms']):.2f}",
              f"{float(r['total_ms']) / base:.2f}", f"{float(r['whole_cycle_ms']):.2f}",
@@ -256,7 +270,9 @@ def s2_report(results):
                  "the box meets it at its own leaves): their detection + response, "
                  f"{min(totals):.2f} to {max(totals):.2f} ms, is this run's noise, "
                  f"{100 * run_noise(rows):.0f}% of their mean at most.\n")
-    text += "\n## Targets\n\n" + table(["target", "measured", "verdict"], s2_level_targets(rows))
+    text += s2_rest_text(rest)
+    text += "\n## Targets\n\n" + table(["target", "measured", "verdict"],
+                                         s2_level_targets(rows, rest))
     text += s2_auto_text(read(results, "s2_auto.csv")[0])
     write(results, "s2.md", text)
 
@@ -292,6 +308,19 @@ def s2_report(results):
     fig.savefig(os.path.join(results, "s2_error_vs_time.png"), dpi=110)
     plt.close(fig)
     return rows
+
+
+def s2_rest_text(rest):
+    """The rest runs: the pile dropped at each level, its speed late in the run, its depths."""
+    text = (f"\n## Rest\n\nThe pile dropped and run at each level for {rest[0]['cycles']} cycles "
+            f"(level 0: each object one sphere); the mean point speed over the last "
+            f"{rest[0]['late_cycles']} cycles (their mean and their largest) and after the last, "
+            "and the end state's depths as above.\n\n")
+    return text + table(
+        ["level", "mean speed m/s", "largest m/s", "after the last m/s", "deepest m", "mean depth m"],
+        [(r["level"], f"{float(r['late_mean_speed_mps']):.4f}",
+          f"{float(r['late_largest_speed_mps']):.4f}", f"{float(r['end_speed_mps']):.4f}",
+          f"{float(r['deepest_m']):.4f}", f"{float(r['mean_depth_m']):.5f}") for r in rest])
 
 
 def auto_most_run_level(auto):
@@ -445,7 +474,7 @@ def summary(results, sizes, ms, methods, s2_rows, s3):
             (f"S2 finest level ({finest['level']}): detection + response <= 10 ms",
              f"{float(finest['detection_ms']):.2f} + {float(finest['response_ms']):.2f} = {finest_total:.2f} ms",
              verdict(finest_total <= 10)),
-            *s2_level_targets(s2_rows),
+            *s2_level_targets(s2_rows, read(results, "s2_rest.csv")),
             auto_target(read(results, "s2_auto.csv")[0]),
             ("S3: whole cycle <= 1 ms", f"{s3_cycle:.3f} ms (with the PointCloud2 conversion)",
              verdict(s3_cycle <= 1)),
