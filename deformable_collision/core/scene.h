@@ -337,6 +337,17 @@ class Scene {
   /// revisions_ at the last cycle's detection: objects numbered up to it kept their points.
   std::uint64_t revisions_detected_ = 0;
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
+  /// The velocity exchanges of this response's pairs, in their order, for the later passes.
+  struct VelocityExchange {
+    std::uint32_t object_a;
+    std::uint32_t object_b;
+    Eigen::Vector3d normal;
+    double share_a;
+    bool sticks;
+  };
+  std::vector<VelocityExchange> velocity_exchanges_;
+  /// Passes over the pairs' velocities after the first.
+  void repeatVelocityExchanges();
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;

@@ -132,12 +132,14 @@ void Scene::respond() {
     const std::uint32_t depth_y = nearer_support(contact_runs_[y]);
     return depth_x != depth_y ? depth_x < depth_y : x < y;
   });
+  velocity_exchanges_.clear();
   for (const std::uint32_t r : resolve_order_) {
     const ContactRun& run = contact_runs_[r];
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
     if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
   }
+  repeatVelocityExchanges();
   stopApproachToFixedPartners();
   for (auto& object : objects_) {
     object->velocity_after = object->dynamic()
@@ -149,6 +151,32 @@ void Scene::respond() {
   }
   // Queries between cycles see the state after the response.
   refreshStaleTrees();
+}
+
+// One pass over the pairs hands a push down to objects whose own supports it has already
+// passed: between objects at the same depth (neighbours in a layer, each half carried by the
+// other), an object wedged between tilted neighbours kept a velocity into them that the
+// position pushes took back every cycle, never still. Later passes over the velocities alone,
+// along each pair's normal and friction as decided in the first, let those exchanges settle;
+// the positions stay as the first pass left them. Four passes let the S2 pile come to rest at
+// every level, the root spheres of level 0 included (docs/design.md, "Velocity passes").
+void Scene::repeatVelocityExchanges() {
+  constexpr int kPasses = 4;
+  for (int pass = 0; pass < kPasses; ++pass) {
+    for (const VelocityExchange& e : velocity_exchanges_) {
+      Object& a = *objects_[e.object_a];
+      Object& b = *objects_[e.object_b];
+      const Eigen::Vector3d velocity_a =
+          a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
+      const Eigen::Vector3d velocity_b =
+          b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
+      const Eigen::Vector3d relative = velocity_a - velocity_b;
+      const Eigen::Vector3d change = e.sticks ? stopSliding(relative, e.normal)
+                                              : stopApproach(relative, e.normal, config_.friction);
+      if (a.dynamic()) a.velocity_change += e.share_a * change;
+      if (b.dynamic()) b.velocity_change -= (1.0 - e.share_a) * change;
+    }
+  }
 }
 
 // A pair resolved after an object's pair with a fixed one may push it back into the fixed
@@ -584,9 +612,10 @@ void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& norma
   // past the friction cone, a resting object kept sliding down it at a steady few cm/s while
   // its position stood still, and the objects it carried took that velocity on.
   const Eigen::Vector3d relative = velocity_a - velocity_b;
-  const Eigen::Vector3d change = holdStaticFriction(pair, normal, share_a)
-                                     ? stopSliding(relative, normal)
-                                     : stopApproach(relative, normal, config_.friction);
+  const bool sticks = holdStaticFriction(pair, normal, share_a);
+  velocity_exchanges_.push_back({pair.index_a, pair.index_b, normal, share_a, sticks});
+  const Eigen::Vector3d change =
+      sticks ? stopSliding(relative, normal) : stopApproach(relative, normal, config_.friction);
   if (a.dynamic()) {
     a.translation += pair.move_a;
     a.velocity_change += share_a * change;
