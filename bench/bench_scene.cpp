@@ -3,7 +3,8 @@
 //   s2 results_dir [settle=150] [cycles=100]
 //     The pile (300 soft objects, 131k points) settled at the finest level, then `cycles`
 //     cycles at each level from 1 to the finest, each from the same settled state (rebuilt
-//     with the same seeds and checked equal): contacts, detection, response, and the error
+//     with the same seeds and checked equal), the levels taking turns of a tenth of their
+//     cycles: contacts, detection, response, and the error
 //     against the finest level: (i) coverage, the largest distance from a finest-level
 //     contact of the settled state to the nearest contact of the same object pair at this
 //     level; (ii) the RMS deviation of the soft objects' points from the finest-level run
@@ -54,18 +55,16 @@ struct Means {
   double contacts = 0, shape_matching_ms = 0, detection_ms = 0, response_ms = 0;
 };
 
-/// Runs `cycles` cycles and returns the means of their stats.
-Means runCycles(dc::Scene& scene, int cycles) {
-  Means m;
+/// Runs `cycles` cycles and adds their stats to the means `m` of `total_cycles` cycles.
+void addCycles(dc::Scene& scene, int cycles, int total_cycles, Means& m) {
   for (int c = 0; c < cycles; ++c) {
     scene.cycle();
     const dc::CycleStats& s = scene.stats();
-    m.contacts += double(s.contacts) / cycles;
-    m.shape_matching_ms += s.shape_matching_ms / cycles;
-    m.detection_ms += s.detection_ms / cycles;
-    m.response_ms += s.response_ms / cycles;
+    m.contacts += double(s.contacts) / total_cycles;
+    m.shape_matching_ms += s.shape_matching_ms / total_cycles;
+    m.detection_ms += s.detection_ms / total_cycles;
+    m.response_ms += s.response_ms / total_cycles;
   }
-  return m;
 }
 
 std::vector<std::size_t> softObjects(const dc::Scene& scene) {
@@ -198,24 +197,38 @@ LevelEnd describeEnd(dc::Scene& scene) {
   return end;
 }
 
-/// Each coarser level from the same settled pile: its means, its end state and its points'
-/// RMS distance from the finest run's, relative to the diameter. False if the settled piles
-/// differ, which would make the comparison meaningless.
-bool runCoarserLevels(int settle, int cycles, const std::vector<Eigen::Vector3d>& settled_points,
-                      const std::vector<Eigen::Vector3d>& reference_points, double diameter_m,
-                      std::vector<Means>& means, std::vector<LevelEnd>& ends,
-                      std::vector<double>& rms_rel) {
+/// Every level from the same settled pile (`finest_scene` is it at the finest level): its
+/// means, its end state and its points' RMS distance from the finest run's, relative to the
+/// diameter. The levels run in turns of a tenth of their cycles each, so that a slow spell of
+/// the host (a shared virtual machine's can last seconds and cost half again) falls on every
+/// level alike rather than on the one running then. False if the settled piles differ,
+/// which would make the comparison meaningless.
+bool runLevels(std::unique_ptr<dc::Scene> finest_scene, int settle, int cycles,
+               const std::vector<Eigen::Vector3d>& settled_points, double diameter_m,
+               std::vector<Means>& means, std::vector<LevelEnd>& ends,
+               std::vector<double>& rms_rel) {
   const int finest = static_cast<int>(means.size()) - 1;
+  std::vector<std::unique_ptr<dc::Scene>> at_level(finest + 1);
+  at_level[finest] = std::move(finest_scene);
   for (int level = 1; level < finest; ++level) {
-    auto scene = settled(dc::DemoScene::kPile, settle);
-    if (softPoints(*scene) != settled_points) {
+    at_level[level] = settled(dc::DemoScene::kPile, settle);
+    if (softPoints(*at_level[level]) != settled_points) {
       std::fprintf(stderr, "bench_scene s2: the settled pile differs between runs\n");
       return false;
     }
-    scene->setLevel(level);
-    means[level] = runCycles(*scene, cycles);
-    ends[level] = describeEnd(*scene);
-    const std::vector<Eigen::Vector3d> points = softPoints(*scene);
+    at_level[level]->setLevel(level);
+  }
+  constexpr int kTurns = 10;
+  for (int turn = 0; turn < kTurns; ++turn) {
+    const int turn_cycles = cycles * (turn + 1) / kTurns - cycles * turn / kTurns;
+    for (int level = 1; level <= finest; ++level) {
+      addCycles(*at_level[level], turn_cycles, cycles, means[level]);
+    }
+  }
+  const std::vector<Eigen::Vector3d> reference_points = softPoints(*at_level[finest]);
+  for (int level = 1; level <= finest; ++level) {
+    ends[level] = describeEnd(*at_level[level]);
+    const std::vector<Eigen::Vector3d> points = softPoints(*at_level[level]);
     double squared = 0.0;
     for (std::size_t p = 0; p < points.size(); ++p)
       squared += (points[p] - reference_points[p]).squaredNorm();
@@ -348,14 +361,10 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
   }
   const std::vector<double> coverage = coverageByLevel(*reference);
   std::vector<Means> means(finest + 1);
-  means[finest] = runCycles(*reference, cycles);
   std::vector<LevelEnd> ends(finest + 1);
-  ends[finest] = describeEnd(*reference);
-  const std::vector<Eigen::Vector3d> reference_points = softPoints(*reference);
-  reference.reset();
   std::vector<double> rms_rel(finest + 1, 0.0);
-  if (!runCoarserLevels(settle, cycles, settled_points, reference_points, pile.diameter_m, means,
-                        ends, rms_rel)) {
+  if (!runLevels(std::move(reference), settle, cycles, settled_points, pile.diameter_m, means,
+                 ends, rms_rel)) {
     return 1;
   }
 
