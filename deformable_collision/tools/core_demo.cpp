@@ -1,10 +1,13 @@
 // The core on a built-in scene: objects, points, level of detail, time per stage and
 // contacts, over a fixed simulated time, and a hash of the trajectory.
-// Usage: core_demo [scene=three_objects] [cycles=300] [level=-1 (finest)]
+// Usage: core_demo [scene=three_objects] [cycles=300] [level=-1 (finest)] [points=0 (the
+//        scene's default)] [contact_distance_m=0 (the scene's default, the least allowed)]
 #include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -100,6 +103,18 @@ std::uint64_t runCycles(dc::DemoScene kind, int cycles, dc::Scene& scene) {
   return contact_hash.value();
 }
 
+/// Whether the scene has come to rest: its dynamic objects' points' mean speed.
+double meanDynamicPointSpeed(const dc::Scene& scene) {
+  double speed = 0.0;
+  std::size_t points = 0;
+  for (std::size_t o = 0; o < scene.objectCount(); ++o) {
+    if (scene.objectConfig(o).kind != dc::ObjectKind::kDynamic) continue;
+    for (const Eigen::Vector3d& v : scene.body(o).velocities()) speed += v.norm();
+    points += scene.body(o).pointCount();
+  }
+  return points > 0 ? speed / double(points) : 0.0;
+}
+
 std::uint64_t finalStateHash(const dc::Scene& scene) {
   TrajectoryHash state_hash;
   for (std::size_t o = 0; o < scene.objectCount(); ++o) {
@@ -122,9 +137,23 @@ int main(int argc, char** argv) {
   const int cycles = argc > 2 ? std::atoi(argv[2]) : 300;
   dc::SceneConfig config;
   config.level = argc > 3 ? std::atoi(argv[3]) : -1;
-  auto scene = dc::makeDemoScene(*kind, 0, config);
+  const long points = argc > 4 ? std::atol(argv[4]) : 0;
+  if (points < 0) {
+    std::fprintf(stderr, "points %ld must be >= 0 (0: the scene's default)\n", points);
+    return 2;
+  }
+  if (argc > 5) config.contact_distance_m = std::atof(argv[5]);
+  std::unique_ptr<dc::Scene> scene;
+  try {
+    scene = dc::makeDemoScene(*kind, std::size_t(points), config);
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "core_demo: %s\n", error.what());
+    return 2;
+  }
   printScene(name, cycles, *scene);
   const std::uint64_t contacts = runCycles(*kind, cycles, *scene);
+  std::printf("mean point speed of the dynamic objects after the last cycle: %.4f m/s\n",
+              meanDynamicPointSpeed(*scene));
   std::printf("trajectory hash: contacts %016" PRIx64 ", final state %016" PRIx64 "\n", contacts,
               finalStateHash(*scene));
   return 0;
