@@ -1,24 +1,22 @@
 // The built-in scenes of the paper's section 7, one scene per process (scripts/run_benchmarks
 // runs each, so peak memory is per scene); rows are appended to CSV files in results_dir.
 //   s2 results_dir [settle=150] [cycles=100]
-//     The pile (300 soft objects, 131k points) settled at the finest level, then `cycles`
-//     cycles at each level from 1 to the finest, each from the same settled state (rebuilt
-//     with the same seeds and checked equal), the levels taking turns of a tenth of their
-//     cycles: contacts, detection, response, and the error
-//     against the finest level: (i) coverage, the largest distance from a finest-level
-//     contact of the settled state to the nearest contact of the same object pair at this
-//     level; (ii) the RMS deviation of the soft objects' points from the finest-level run
-//     after the cycles, over their mean diameter; the whole cycle's time (shape matching
-//     included), and the state each level leaves: mean point speed, and how far point pairs
-//     of two soft objects lie inside half the contact distance (largest and mean, over the
-//     finest level's contacts). Then `level: auto` (Scene::setCycleBudget) for `cycles`
-//     cycles from the same settled state, with a budget of half the finest level's
-//     detection + response in this run: the share of cycles within it (of all, and of those
-//     after the first 20, in which the level climbs from 0), the levels picked and the mean
-//     cost. Last, rest: the pile dropped and run at each level from 0 to the finest for 300
-//     cycles from the start, the mean point speed over its last 50 cycles (mean, largest,
-//     and after the last) and its end state's depths. -> s2.csv, s2_state.csv, s2_auto.csv,
-//     s2_rest.csv, baselines.csv
+//     The pile (300 soft objects, 131k points) settled at the finest level, then `cycles` cycles at
+//     each level from 1 to the finest, each from the same settled state (rebuilt with the same
+//     seeds and checked equal), the levels taking turns of a tenth of their cycles: contacts,
+//     detection, response, and the error against the finest level: (i) coverage, the largest
+//     distance from a finest-level contact of the settled state to the nearest contact of the same
+//     object pair at this level; (ii) the RMS deviation of the soft objects' points from the
+//     finest-level run after the cycles, over their mean diameter; the whole cycle's time (shape
+//     matching included), and the state each level leaves: mean point speed, and how far point
+//     pairs of two soft objects lie inside half the contact distance (largest and mean, over the
+//     finest level's contacts). Then `level: auto` (Scene::setCycleBudget) for `cycles` cycles from
+//     the same settled state, with a budget of half the finest level's detection + response in this
+//     run: the share of cycles within it (of all, and of those after the first 20, in which the
+//     level climbs from 0), the levels picked and the mean cost. Last, rest: the pile dropped and
+//     run at each level from 0 to the finest for 300 cycles from the start, the mean point speed
+//     over its last 50 cycles (mean, largest, and after the last) and its end state's depths. ->
+//     s2.csv, s2_state.csv, s2_auto.csv, s2_rest.csv, baselines.csv
 //   s3 results_dir [settle=150] [cycles=100]
 //     Three objects (19k points) at the finest level, stage by stage, with the conversion
 //     of every object's points to a PointCloud2 as the node publishes them. -> s3.csv,

@@ -258,6 +258,8 @@ class Scene {
   /// Between a fixed and a dynamic object: whether the dynamic one lay on the touched
   /// surface before this cycle's step. Between dynamic objects: true.
   bool isSupportLink(const ContactRun& run);
+  /// Passes over the pairs' velocities after the first (velocity_exchanges_).
+  void repeatVelocityExchanges();
   /// Once every pair is resolved: no object leaves moving into a fixed one it was pushed off.
   void stopApproachToFixedPartners();
   /// Moves a dynamic object by its pairs' pushes and dents it where they need more.
@@ -346,8 +348,6 @@ class Scene {
     bool sticks;
   };
   std::vector<VelocityExchange> velocity_exchanges_;
-  /// Passes over the pairs' velocities after the first.
-  void repeatVelocityExchanges();
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
