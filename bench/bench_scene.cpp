@@ -138,16 +138,11 @@ struct PileState {
 PileState describePile(const dc::Scene& pile) {
   PileState state;
   const std::vector<std::size_t> soft = softObjects(pile);
-  std::size_t points = 0;
   for (const std::size_t i : soft) {
     state.diameter_m += 2.0 * dc::smallestEnclosingSphere(pile.body(i).restPositions()).radius;
   }
   state.diameter_m /= double(soft.size());
-  for (const std::size_t i : soft) {
-    for (const Eigen::Vector3d& v : pile.body(i).velocities()) state.speed_mps += v.norm();
-    points += pile.body(i).velocities().size();
-  }
-  state.speed_mps /= double(points);
+  state.speed_mps = dc::meanDynamicPointSpeed(pile);
   return state;
 }
 
@@ -175,7 +170,7 @@ struct LevelEnd {
 
 LevelEnd describeEnd(dc::Scene& scene) {
   LevelEnd end;
-  end.speed_mps = describePile(scene).speed_mps;
+  end.speed_mps = dc::meanDynamicPointSpeed(scene);
   std::vector<dc::SceneContact> contacts;
   scene.contactsAt(scene.maxLevel(), std::nullopt, std::nullopt, contacts);
   const double half = 0.5 * scene.config().contact_distance_m;
@@ -251,7 +246,7 @@ RestRun runRest(int level) {
   for (int c = 0; c < RestRun::kCycles; ++c) {
     scene->cycle();
     if (c < RestRun::kCycles - RestRun::kLateCycles) continue;
-    const double speed = describePile(*scene).speed_mps;
+    const double speed = dc::meanDynamicPointSpeed(*scene);
     run.late_mean_speed_mps += speed / RestRun::kLateCycles;
     run.late_largest_speed_mps = std::max(run.late_largest_speed_mps, speed);
   }

@@ -258,8 +258,19 @@ class Scene {
   /// Between a fixed and a dynamic object: whether the dynamic one lay on the touched
   /// surface before this cycle's step. Between dynamic objects: true.
   bool isSupportLink(const ContactRun& run);
+  /// A pair's velocity exchange as its resolution decided it.
+  struct VelocityExchange {
+    std::uint32_t object_a;
+    std::uint32_t object_b;
+    Eigen::Vector3d normal;  ///< From b to a.
+    double share_a;          ///< a's share of the change (shock propagation).
+    bool sticks;             ///< Static friction held the pair in position.
+  };
   /// Passes over the pairs' velocities after the first (velocity_exchanges_).
   void repeatVelocityExchanges();
+  /// Stops a pair's approach (or, where it sticks, its sliding) along the exchange's normal,
+  /// shared by its share_a.
+  void exchangeVelocity(const VelocityExchange& exchange);
   /// Once every pair is resolved: no object leaves moving into a fixed one it was pushed off.
   void stopApproachToFixedPartners();
   /// Moves a dynamic object by its pairs' pushes and dents it where they need more.
@@ -340,13 +351,6 @@ class Scene {
   std::uint64_t revisions_detected_ = 0;
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   /// The velocity exchanges of this response's pairs, in their order, for the later passes.
-  struct VelocityExchange {
-    std::uint32_t object_a;
-    std::uint32_t object_b;
-    Eigen::Vector3d normal;
-    double share_a;
-    bool sticks;
-  };
   std::vector<VelocityExchange> velocity_exchanges_;
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;

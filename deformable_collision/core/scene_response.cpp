@@ -163,20 +163,25 @@ void Scene::respond() {
 void Scene::repeatVelocityExchanges() {
   constexpr int kPasses = 4;
   for (int pass = 0; pass < kPasses; ++pass) {
-    for (const VelocityExchange& e : velocity_exchanges_) {
-      Object& a = *objects_[e.object_a];
-      Object& b = *objects_[e.object_b];
-      const Eigen::Vector3d velocity_a =
-          a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
-      const Eigen::Vector3d velocity_b =
-          b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
-      const Eigen::Vector3d relative = velocity_a - velocity_b;
-      const Eigen::Vector3d change = e.sticks ? stopSliding(relative, e.normal)
-                                              : stopApproach(relative, e.normal, config_.friction);
-      if (a.dynamic()) a.velocity_change += e.share_a * change;
-      if (b.dynamic()) b.velocity_change -= (1.0 - e.share_a) * change;
-    }
+    for (const VelocityExchange& exchange : velocity_exchanges_) exchangeVelocity(exchange);
   }
+}
+
+// The pair's relative velocity is taken after this response's changes so far (a fixed
+// object is at rest).
+void Scene::exchangeVelocity(const VelocityExchange& exchange) {
+  Object& a = *objects_[exchange.object_a];
+  Object& b = *objects_[exchange.object_b];
+  const Eigen::Vector3d velocity_a =
+      a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d velocity_b =
+      b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d relative = velocity_a - velocity_b;
+  const Eigen::Vector3d change = exchange.sticks
+                                     ? stopSliding(relative, exchange.normal)
+                                     : stopApproach(relative, exchange.normal, config_.friction);
+  if (a.dynamic()) a.velocity_change += exchange.share_a * change;
+  if (b.dynamic()) b.velocity_change -= (1.0 - exchange.share_a) * change;
 }
 
 // A pair resolved after an object's pair with a fixed one may push it back into the fixed
@@ -595,10 +600,6 @@ void Scene::rememberSide(const ResolvingPair& pair, const Eigen::Vector3d& norma
 void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& normal) {
   Object& a = pair.a;
   Object& b = pair.b;
-  const Eigen::Vector3d velocity_a =
-      a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
-  const Eigen::Vector3d velocity_b =
-      b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
   // Shock propagation (Guendelman et al. 2003): of two touching objects, the one nearer to
   // a fixed support acts as fixed, so that pushes never drive an object into what carries
   // it, such as the bottom of a pile into the floor or a wall.
@@ -611,19 +612,11 @@ void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& norma
   // the slip is taken back each cycle moves nothing, and it stays. On a coarse normal tilted
   // past the friction cone, a resting object kept sliding down it at a steady few cm/s while
   // its position stood still, and the objects it carried took that velocity on.
-  const Eigen::Vector3d relative = velocity_a - velocity_b;
   const bool sticks = holdStaticFriction(pair, normal, share_a);
   velocity_exchanges_.push_back({pair.index_a, pair.index_b, normal, share_a, sticks});
-  const Eigen::Vector3d change =
-      sticks ? stopSliding(relative, normal) : stopApproach(relative, normal, config_.friction);
-  if (a.dynamic()) {
-    a.translation += pair.move_a;
-    a.velocity_change += share_a * change;
-  }
-  if (b.dynamic()) {
-    b.translation += pair.move_b;
-    b.velocity_change -= (1.0 - share_a) * change;
-  }
+  exchangeVelocity(velocity_exchanges_.back());
+  if (a.dynamic()) a.translation += pair.move_a;
+  if (b.dynamic()) b.translation += pair.move_b;
 }
 
 // Static friction on the positions: what the pair slid across its normal over the cycle,

@@ -211,4 +211,15 @@ void driveDemoScene(DemoScene scene, Scene& built, double time_s) {
   }
 }
 
+double meanDynamicPointSpeed(const Scene& scene) {
+  double speed = 0.0;
+  std::size_t points = 0;
+  for (std::size_t o = 0; o < scene.objectCount(); ++o) {
+    if (scene.objectConfig(o).kind != ObjectKind::kDynamic) continue;
+    for (const Eigen::Vector3d& v : scene.body(o).velocities()) speed += v.norm();
+    points += scene.body(o).pointCount();
+  }
+  return points > 0 ? speed / double(points) : 0.0;
+}
+
 }  // namespace deformable_collision

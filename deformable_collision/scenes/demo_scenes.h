@@ -49,4 +49,8 @@ std::optional<Eigen::Isometry3d> demoKinematicPose(DemoScene scene, const std::s
 /// gripper's jaws); nothing for the others.
 void driveDemoScene(DemoScene scene, Scene& built, double time_s);
 
+/// The mean speed of the dynamic objects' points, m/s (whether a scene has come to rest);
+/// 0 if it has none.
+double meanDynamicPointSpeed(const Scene& scene);
+
 }  // namespace deformable_collision

@@ -103,18 +103,6 @@ std::uint64_t runCycles(dc::DemoScene kind, int cycles, dc::Scene& scene) {
   return contact_hash.value();
 }
 
-/// Whether the scene has come to rest: its dynamic objects' points' mean speed.
-double meanDynamicPointSpeed(const dc::Scene& scene) {
-  double speed = 0.0;
-  std::size_t points = 0;
-  for (std::size_t o = 0; o < scene.objectCount(); ++o) {
-    if (scene.objectConfig(o).kind != dc::ObjectKind::kDynamic) continue;
-    for (const Eigen::Vector3d& v : scene.body(o).velocities()) speed += v.norm();
-    points += scene.body(o).pointCount();
-  }
-  return points > 0 ? speed / double(points) : 0.0;
-}
-
 std::uint64_t finalStateHash(const dc::Scene& scene) {
   TrajectoryHash state_hash;
   for (std::size_t o = 0; o < scene.objectCount(); ++o) {
@@ -153,7 +141,7 @@ int main(int argc, char** argv) {
   printScene(name, cycles, *scene);
   const std::uint64_t contacts = runCycles(*kind, cycles, *scene);
   std::printf("mean point speed of the dynamic objects after the last cycle: %.4f m/s\n",
-              meanDynamicPointSpeed(*scene));
+              dc::meanDynamicPointSpeed(*scene));
   std::printf("trajectory hash: contacts %016" PRIx64 ", final state %016" PRIx64 "\n", contacts,
               finalStateHash(*scene));
   return 0;

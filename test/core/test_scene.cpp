@@ -570,14 +570,7 @@ TEST_P(PileRestTest, ComesToRest) {
   for (int cycle = 0; cycle < kCycles; ++cycle) {
     scene->cycle();
     if (cycle < kCycles - kLateCycles) continue;
-    double speed = 0.0;
-    std::size_t points = 0;
-    for (std::size_t o = 0; o < scene->objectCount(); ++o) {
-      if (scene->objectConfig(o).kind != ObjectKind::kDynamic) continue;
-      for (const Eigen::Vector3d& v : scene->body(o).velocities()) speed += v.norm();
-      points += scene->body(o).pointCount();
-    }
-    late_mean_speed += speed / double(points) / kLateCycles;
+    late_mean_speed += meanDynamicPointSpeed(*scene) / kLateCycles;
   }
   EXPECT_LT(late_mean_speed, 0.0025) << "m/s";
 }
