@@ -82,6 +82,14 @@ void LevelBudget::record(double cost_ms) {
     // The first cycle at a level pays for the switch (the response resolves the overlaps the
     // other level left); the level's own cost shows from the next cycle on.
     settling_ = false;
+    if (return_level_ >= 0 && cost_ms > budget_ms_) {
+      // Going finer leaves fewer overlaps than it finds, so a try's switch cycle costs about
+      // what its next ones do: one that overran already would not show the headroom a try
+      // needs on its second cycle, which would overrun too.
+      takeCost(levels_[level_], cost_ms);
+      level_ = levelAfterLeaving();
+      settling_ = true;
+    }
     return;
   }
   LevelCost& ran = levels_[level_];

@@ -37,7 +37,8 @@ struct LevelBudgetTuning {
 /// 0; others every explore_period_cycles), and left at once if they do not fit with
 /// headroom. The first cycle at a level after a switch pays for the switch and is left out
 /// of its estimate: a level is judged from its second cycle on, so each switch stays for at
-/// least two cycles. record() allocates nothing.
+/// least two cycles, but for a try whose first cycle overran the budget (going finer, the
+/// switch costs little), which is left at once. record() allocates nothing.
 class LevelBudget {
  public:
   /// Starts at level 0 (the coarsest) with no estimates; its first cycle is a switch.

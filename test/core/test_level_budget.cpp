@@ -113,36 +113,39 @@ INSTANTIATE_TEST_SUITE_P(
         ProfileCase{"LikeS2GetsCheaper", kLikeS2, 3.0, 0.1, 1000, 0.35, 11, 2200}),
     [](const auto& info) { return info.param.name; });
 
-/// The cost of a level's first cycle after a switch, which its estimate leaves out.
-constexpr double kSwitchCostMs = 1e3;
+/// The cost of a try's first cycle at a finer level: within the budget of 10 ms the tests
+/// below use, but without headroom. The switch's cycle is not judged for headroom, only for
+/// the budget.
+constexpr double kFinerSwitchCostMs = 9.5;
 
 TEST(LevelBudget, StartsAtTheCoarsestLevelAndClimbsOneLevelEveryTwoCyclesWhileThereIsHeadroom) {
   LevelBudget budget(10.0, 5);
   EXPECT_EQ(budget.level(), 0);
   for (int level = 0; level < 5; ++level) {
     ASSERT_EQ(budget.level(), level);
-    budget.record(kSwitchCostMs);  // a switch's cycle: the level stays
+    budget.record(kFinerSwitchCostMs);  // a switch's cycle: the level stays
     ASSERT_EQ(budget.level(), level);
     EXPECT_FALSE(budget.estimateMs(level));
     budget.record(1.0);
     EXPECT_EQ(budget.estimateMs(level), 1.0);
   }
   EXPECT_EQ(budget.level(), 5);
-  budget.record(kSwitchCostMs);
+  budget.record(kFinerSwitchCostMs);
   budget.record(1.0);
   EXPECT_EQ(budget.level(), 5);
 }
 
-TEST(LevelBudget, ATryThatOverrunsComesBackAtOnceAndIsNotRepeatedBeforeItsPeriod) {
+TEST(LevelBudget, ATryThatOverrunsOnItsSwitchCycleComesBackAtOnceAndNotBeforeItsPeriod) {
   LevelBudget budget(10.0, 3);
-  budget.record(kSwitchCostMs);
+  budget.record(kFinerSwitchCostMs);
   budget.record(1.0);  // level 0
   ASSERT_EQ(budget.level(), 1);
-  budget.record(kSwitchCostMs);
-  budget.record(50.0);  // level 1 overruns
+  budget.record(50.0);  // level 1 overruns on its first cycle
   EXPECT_EQ(budget.level(), 0);
   ASSERT_TRUE(budget.estimateMs(1));
   EXPECT_EQ(*budget.estimateMs(1), 50.0);
+  budget.record(50.0);  // the switch's cycle back at level 0: not judged
+  EXPECT_EQ(budget.level(), 0);
   const int period = LevelBudgetTuning{}.explore_period_cycles;
   int cycle = 0;
   while (budget.level() == 0 && cycle < 10 * period) {
@@ -155,21 +158,33 @@ TEST(LevelBudget, ATryThatOverrunsComesBackAtOnceAndIsNotRepeatedBeforeItsPeriod
   EXPECT_LE(cycle, period);
 }
 
-TEST(LevelBudget, ATryWithinBudgetButWithoutHeadroomIsLeft) {
+TEST(LevelBudget, ATryThatOverrunsOnItsSecondCycleComesBackAtOnce) {
   LevelBudget budget(10.0, 1);
-  budget.record(kSwitchCostMs);
+  budget.record(kFinerSwitchCostMs);
   budget.record(1.0);
   ASSERT_EQ(budget.level(), 1);
-  budget.record(kSwitchCostMs);
+  budget.record(kFinerSwitchCostMs);
+  EXPECT_EQ(budget.level(), 1);
+  budget.record(12.0);
+  EXPECT_EQ(budget.level(), 0);
+  EXPECT_EQ(budget.estimateMs(1), 12.0);
+}
+
+TEST(LevelBudget, ATryWithinBudgetButWithoutHeadroomIsLeft) {
+  LevelBudget budget(10.0, 1);
+  budget.record(kFinerSwitchCostMs);
+  budget.record(1.0);
+  ASSERT_EQ(budget.level(), 1);
+  budget.record(kFinerSwitchCostMs);
   budget.record(9.0);  // fits, but above 0.8 x 10
   EXPECT_EQ(budget.level(), 0);
 }
 
 TEST(LevelBudget, AChosenLevelIsKeptWhileItFitsAndLeftOnceItsEstimateOverruns) {
   LevelBudget budget(10.0, 1);
-  budget.record(kSwitchCostMs);
+  budget.record(kFinerSwitchCostMs);
   budget.record(1.0);
-  budget.record(kSwitchCostMs);
+  budget.record(kFinerSwitchCostMs);
   budget.record(7.0);  // the try of level 1 has headroom: kept
   ASSERT_EQ(budget.level(), 1);
   for (int cycle = 0; cycle < 20; ++cycle) {
@@ -178,6 +193,11 @@ TEST(LevelBudget, AChosenLevelIsKeptWhileItFitsAndLeftOnceItsEstimateOverruns) {
   }
   budget.record(30.0);  // one cycle far over: the estimate overruns at once
   EXPECT_EQ(budget.level(), 0);
+  // Going coarser, the switch's cycle resolves the overlaps the coarser spheres find and
+  // may cost far more than the level will: it is not judged, whatever it costs.
+  budget.record(1e3);
+  EXPECT_EQ(budget.level(), 0);
+  EXPECT_EQ(budget.estimateMs(0), 1.0);
 }
 
 TEST(LevelBudget, WhenNothingFitsItRunsTheCheapestLevel) {
