@@ -32,11 +32,13 @@ void checkTuning(const LevelBudgetTuning& tuning) {
             << " must be in (0, 1]";
     throw std::invalid_argument(message.str());
   }
-  if (tuning.explore_period_cycles < 1 || tuning.max_backoff_doublings < 0 ||
-      tuning.max_backoff_doublings > 32) {
+  const auto inDoublingRange = [](int doublings) { return doublings >= 0 && doublings <= 32; };
+  if (tuning.explore_period_cycles < 1 || !inDoublingRange(tuning.max_backoff_doublings) ||
+      !inDoublingRange(tuning.max_blind_try_doublings)) {
     throw std::invalid_argument(
         "LevelBudgetTuning: explore_period_cycles " + std::to_string(tuning.explore_period_cycles) +
-        " must be >= 1 and max_backoff_doublings " + std::to_string(tuning.max_backoff_doublings) +
+        " must be >= 1, max_backoff_doublings " + std::to_string(tuning.max_backoff_doublings) +
+        " and max_blind_try_doublings " + std::to_string(tuning.max_blind_try_doublings) +
         " in [0, 32]");
   }
 }
@@ -87,7 +89,7 @@ void LevelBudget::record(double cost_ms) {
       // what its next ones do: one that overran already would not show the headroom a try
       // needs on its second cycle, which would overrun too.
       takeCost(levels_[level_], cost_ms);
-      level_ = levelAfterLeaving();
+      leave();
       settling_ = true;
     }
     return;
@@ -98,8 +100,21 @@ void LevelBudget::record(double cost_ms) {
   // it fits: the gap between the two is the hysteresis.
   const bool keep = return_level_ >= 0 ? comfortable(ran) : fits(ran);
   const int previous = level_;
-  level_ = keep ? levelAfterKeeping() : levelAfterLeaving();
+  if (keep) {
+    level_ = levelAfterKeeping();
+  } else {
+    leave();
+  }
   settling_ = level_ != previous;
+}
+
+void LevelBudget::leave() {
+  const int left = level_;
+  level_ = levelAfterLeaving();
+  LevelCost& cost = levels_[left];
+  const LevelCost& next = levels_[level_];
+  cost.reference_level = next.measured && level_ != left ? level_ : -1;
+  cost.reference_ms = next.estimate_ms;
 }
 
 void LevelBudget::takeCost(LevelCost& level, double cost_ms) const {
@@ -123,6 +138,14 @@ bool LevelBudget::comfortable(const LevelCost& level) const {
   return level.measured && level.estimate_ms <= tuning_.headroom * budget_ms_;
 }
 
+bool LevelBudget::expectedComfortable(const LevelCost& level) const {
+  if (!level.measured || level.reference_level != level_ || !(level.reference_ms > 0.0)) {
+    return false;
+  }
+  const double scale = levels_[level_].estimate_ms / level.reference_ms;
+  return level.estimate_ms * scale <= tuning_.headroom * budget_ms_;
+}
+
 template <typename Test>
 int LevelBudget::finestLevel(Test test) const {
   for (int level = maxLevel(); level >= 0; --level) {
@@ -134,6 +157,7 @@ int LevelBudget::finestLevel(Test test) const {
 int LevelBudget::levelAfterKeeping() {
   LevelCost& ran = levels_[level_];
   ran.failed_tries = 0;
+  if (return_level_ >= 0) failed_tries_in_a_row_ = 0;
   return_level_ = -1;
   const int finer = finestLevel([this](const LevelCost& l) { return comfortable(l); });
   if (finer > level_) return finer;
@@ -141,25 +165,34 @@ int LevelBudget::levelAfterKeeping() {
   const int tried = finerLevelToTry();
   if (tried < 0) return level_;
   return_level_ = level_;
-  next_try_cycle_ = cycle_ + std::uint64_t(tuning_.explore_period_cycles);
+  last_try_cycle_ = cycle_;
   return tried;
 }
 
 int LevelBudget::finerLevelToTry() const {
   // The first cycles climb from level 0, a level every two cycles, while each has headroom.
   if (level_ < maxLevel() && !levels_[level_ + 1].measured) return level_ + 1;
-  if (cycle_ < next_try_cycle_) return -1;
-  // Coarse to fine: a coarser level is likelier to fit.
+  const std::uint64_t period = std::uint64_t(tuning_.explore_period_cycles);
+  if (cycle_ < last_try_cycle_ + period) return -1;
+  // Blind tries (of a level never run, or due for a retry) wait longer after each that
+  // failed; a level that the running one's cost says got cheap enough is tried at once.
+  const int doublings = std::min(failed_tries_in_a_row_, tuning_.max_blind_try_doublings);
+  const bool blind_try_due = cycle_ >= last_try_cycle_ + (period << doublings);
+  // Coarse to fine: a coarser level is likelier to fit; levels never run before retries,
+  // which would otherwise take every blind try from the finer levels.
+  int retry = -1;
   for (int level = level_ + 1; level <= maxLevel(); ++level) {
     const LevelCost& cost = levels_[level];
-    if (!cost.measured || (!comfortable(cost) && cycle_ >= cost.retry_cycle)) return level;
+    if (expectedComfortable(cost) || (blind_try_due && !cost.measured)) return level;
+    if (blind_try_due && retry < 0 && cycle_ >= cost.retry_cycle) retry = level;
   }
-  return -1;
+  return retry;
 }
 
 int LevelBudget::levelAfterLeaving() {
   deferRetry(levels_[level_]);
   if (return_level_ >= 0) {
+    failed_tries_in_a_row_ = std::min(failed_tries_in_a_row_ + 1, tuning_.max_blind_try_doublings);
     const int back = return_level_;
     return_level_ = -1;
     return back;

@@ -17,13 +17,17 @@ struct LevelBudgetTuning {
   /// more, so that a scene that got dearer leaves the level within a cycle or two.
   double rise_weight = 0.5;
   double fall_weight = 0.2;
-  /// Cycles between tries of a finer level (never run, or too slow when last run) while
-  /// the running one has headroom; an estimate older than this is replaced by the next
-  /// cost measured at its level.
+  /// Least cycles between tries of a finer level (never run, or too slow when last run)
+  /// while the running one has headroom; an estimate older than this is replaced by the
+  /// next cost measured at its level.
   int explore_period_cycles = 50;
   /// A level found too slow at each try waits twice as long for the next, at most
   /// 2^max_backoff_doublings periods.
   int max_backoff_doublings = 4;
+  /// Blind tries (see LevelBudget) wait twice as long after each try in a row that failed,
+  /// at most 2^max_blind_try_doublings periods: a scene whose finer levels are all too slow
+  /// pays for few tries, a scene with levels never run still finds them soon.
+  int max_blind_try_doublings = 2;
 };
 
 /// Picks the level of detail of each cycle from a budget for its detection and response
@@ -32,10 +36,13 @@ struct LevelBudgetTuning {
 /// grow with the level, so each level keeps its own estimate, a moving average of what
 /// cycles at it cost, and every level with an estimate is considered: the next level is
 /// the finest one expected within headroom x budget, the running one kept while its
-/// estimate fits the budget. Levels never run are tried one at a time when the running
-/// level has headroom (the next finer one at once, as the first cycles climb from level
-/// 0; others every explore_period_cycles), and left at once if they do not fit with
-/// headroom. The first cycle at a level after a switch pays for the switch and is left out
+/// estimate fits the budget. Finer levels are tried one at a time when the running level
+/// has headroom, and left at once if they do not fit with headroom: the next finer one
+/// never run at once (the first cycles climb from level 0); a level left as too slow when
+/// the running level's estimate has since fallen enough that it would scale to fit with
+/// headroom, at most once per explore_period_cycles; blind tries (levels never run, or
+/// due for a retry) after explore_period_cycles, doubled for each blind or scaled try in
+/// a row that failed. The first cycle at a level after a switch pays for the switch and is left out
 /// of its estimate: a level is judged from its second cycle on, so each switch stays for at
 /// least two cycles, but for a try whose first cycle overran the budget (going finer, the
 /// switch costs little), which is left at once. record() allocates nothing.
@@ -74,12 +81,21 @@ class LevelBudget {
     std::uint64_t measured_cycle = 0;  ///< The cycle of its last cost.
     std::uint64_t retry_cycle = 0;     ///< Before this cycle, no try comes back to it.
     int failed_tries = 0;              ///< Tries in a row that left it as too slow.
+    /// The level it was last left for, if measured then, and that level's estimate then:
+    /// the scene's cost since scales this level's estimate.
+    int reference_level = -1;
+    double reference_ms = 0.0;
     bool measured = false;
   };
 
   void takeCost(LevelCost& level, double cost_ms) const;
   bool fits(const LevelCost& level) const;
   bool comfortable(const LevelCost& level) const;
+  /// `level` was left for the running level, whose estimate has fallen since so far that
+  /// `level`'s estimate, scaled alike, is within headroom x budget.
+  bool expectedComfortable(const LevelCost& level) const;
+  /// Leaves level_ as too slow for levelAfterLeaving(), and notes what it was left for.
+  void leave();
   /// The level after a cycle at level_ that is kept: finer if one is known to be
   /// comfortable, a try of a finer one if due, or level_.
   int levelAfterKeeping();
@@ -102,7 +118,8 @@ class LevelBudget {
   /// The next cost is the first at level_ after a switch (or since the start).
   bool settling_ = true;
   std::uint64_t cycle_ = 0;
-  std::uint64_t next_try_cycle_ = 0;
+  std::uint64_t last_try_cycle_ = 0;
+  int failed_tries_in_a_row_ = 0;
 };
 
 }  // namespace deformable_collision

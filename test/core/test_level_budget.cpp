@@ -152,10 +152,54 @@ TEST(LevelBudget, ATryThatOverrunsOnItsSwitchCycleComesBackAtOnceAndNotBeforeIts
     budget.record(1.0);
     ++cycle;
   }
-  // The next try goes to level 2, never run, before level 1 is tried again.
+  // The next try goes to level 2, never run, before level 1 is tried again; being blind
+  // after a try that failed, it waits two periods.
   EXPECT_EQ(budget.level(), 2);
-  EXPECT_GE(cycle, period - 4);
-  EXPECT_LE(cycle, period);
+  EXPECT_GE(cycle, 2 * period - 4);
+  EXPECT_LE(cycle, 2 * period);
+}
+
+TEST(LevelBudget, BlindTriesThatFailWaitLongerEachTimeUpToTheirMostDoublings) {
+  // Levels 1 to 5 each overrun on a try's first cycle; level 0 has headroom.
+  LevelBudget budget(10.0, 5);
+  const int period = LevelBudgetTuning{}.explore_period_cycles;
+  std::vector<int> try_cycles;
+  for (int cycle = 0; cycle < 20 * period; ++cycle) {
+    if (budget.level() > 0) try_cycles.push_back(cycle);
+    budget.record(budget.level() == 0 ? 1.0 : 50.0);
+  }
+  ASSERT_GE(try_cycles.size(), 4u);
+  // The climb's try of level 1, then tries 2, 4, 4, ... periods apart (two cycles more
+  // each: the switch back and the cycle that judges level 0 again).
+  const int most_periods = 1 << LevelBudgetTuning{}.max_blind_try_doublings;
+  EXPECT_EQ(try_cycles[0], 2);
+  for (std::size_t i = 1; i < try_cycles.size(); ++i) {
+    const int expected = std::min(1 << i, most_periods) * period;
+    EXPECT_GE(try_cycles[i] - try_cycles[i - 1], expected) << i;
+    EXPECT_LE(try_cycles[i] - try_cycles[i - 1], expected + 2) << i;
+  }
+}
+
+TEST(LevelBudget, ALevelLeftAsTooSlowIsTriedAgainOnceTheRunningLevelShowsTheSceneGotCheaper) {
+  // Level 1 costs twice level 0: too slow at 12 ms against 10, fine once the scene costs
+  // half as much. The running level's cost shows the change: level 1 is tried within one
+  // period, not after its backoff.
+  LevelBudget budget(10.0, 1);
+  double scale = 1.0;
+  const auto cost = [&] { return scale * (budget.level() == 0 ? 6.0 : 12.0); };
+  for (int cycle = 0; cycle < 400; ++cycle) budget.record(cost());
+  ASSERT_EQ(budget.level(), 0);
+  scale = 0.5;
+  const int period = LevelBudgetTuning{}.explore_period_cycles;
+  int cycle = 0;
+  while (budget.level() == 0 && cycle < 10 * period) {
+    budget.record(cost());
+    ++cycle;
+  }
+  EXPECT_EQ(budget.level(), 1);
+  EXPECT_LE(cycle, period + 2);
+  for (int more = 0; more < 20; ++more) budget.record(cost());
+  EXPECT_EQ(budget.level(), 1);
 }
 
 TEST(LevelBudget, ATryThatOverrunsOnItsSecondCycleComesBackAtOnce) {
@@ -269,7 +313,8 @@ TEST(LevelBudget, RefusesABadBudgetCostOrTuning) {
        {tuned([](auto& t) { t.headroom = 0.0; }), tuned([](auto& t) { t.headroom = 1.5; }),
         tuned([](auto& t) { t.rise_weight = kNaN; }), tuned([](auto& t) { t.fall_weight = 0.0; }),
         tuned([](auto& t) { t.explore_period_cycles = 0; }),
-        tuned([](auto& t) { t.max_backoff_doublings = -1; })}) {
+        tuned([](auto& t) { t.max_backoff_doublings = -1; }),
+        tuned([](auto& t) { t.max_blind_try_doublings = 33; })}) {
     EXPECT_THROW(LevelBudget(1.0, 3, bad), std::invalid_argument);
   }
 }
