@@ -401,6 +401,12 @@ void SphereTree::measureWithLeaves(std::uint32_t index) {
   const Eigen::Vector3d center = deformedCenter(node.rest_center, deformation, mode);
   const bool exact = node.point_count <= exact_radius_points_;
   const auto& positions = body_->positions();
+  // The points lie wherever their cloud put them, and a scene's shape matching has moved
+  // many others since: asking for all of the node's at once overlaps their cache misses,
+  // which the gathers below would otherwise wait for one leaf at a time.
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    __builtin_prefetch(positions[point_indices_[s]].data());
+  }
   double farthest_squared = 0.0;
   for (std::uint32_t k = node.first_leaf; k < node.first_leaf + node.leaf_count; ++k) {
     const Eigen::Vector3d leaf_center = deformedCenter(leaf_rest_centers_[k], deformation, mode);
