@@ -61,6 +61,7 @@ void LevelBudget::setBudget(double budget_ms) {
 void LevelBudget::setMaxLevel(int max_level) {
   checkMaxLevel(max_level);
   levels_.resize(static_cast<std::size_t>(max_level) + 1);
+  if (awaiting_reference_ > max_level) awaiting_reference_ = -1;
   if (level_ > max_level) {
     level_ = max_level;
     return_level_ = -1;
@@ -96,6 +97,11 @@ void LevelBudget::record(double cost_ms) {
   }
   LevelCost& ran = levels_[level_];
   takeCost(ran, cost_ms);
+  if (awaiting_reference_ >= 0) {
+    levels_[awaiting_reference_].reference_level = level_;
+    levels_[awaiting_reference_].reference_ms = ran.estimate_ms;
+    awaiting_reference_ = -1;
+  }
   // A try of a finer level must show headroom to stay; a level already chosen stays while
   // it fits: the gap between the two is the hysteresis.
   const bool keep = return_level_ >= 0 ? comfortable(ran) : fits(ran);
@@ -110,11 +116,14 @@ void LevelBudget::record(double cost_ms) {
 
 void LevelBudget::leave() {
   const int left = level_;
+  const bool was_try = return_level_ >= 0;
   level_ = levelAfterLeaving();
   LevelCost& cost = levels_[left];
-  const LevelCost& next = levels_[level_];
-  cost.reference_level = next.measured && level_ != left ? level_ : -1;
-  cost.reference_ms = next.estimate_ms;
+  cost.left_running = !was_try;
+  // The level it was left for is the reference once its next cycle is judged: its estimate
+  // may be from cycles long ago.
+  cost.reference_level = -1;
+  awaiting_reference_ = level_ != left ? left : -1;
 }
 
 void LevelBudget::takeCost(LevelCost& level, double cost_ms) const {
@@ -179,12 +188,18 @@ int LevelBudget::finerLevelToTry() const {
   const int doublings = std::min(failed_tries_in_a_row_, tuning_.max_blind_try_doublings);
   const bool blind_try_due = cycle_ >= last_try_cycle_ + (period << doublings);
   // Coarse to fine: a coarser level is likelier to fit; levels never run before retries,
-  // which would otherwise take every blind try from the finer levels.
+  // which would otherwise take every blind try from the finer levels. A level that ran
+  // until it overran (a busy spell of the host, or the scene got dearer for a while) is
+  // no blind try: it comes back when its own retry is due.
   int retry = -1;
   for (int level = level_ + 1; level <= maxLevel(); ++level) {
     const LevelCost& cost = levels_[level];
-    if (expectedComfortable(cost) || (blind_try_due && !cost.measured)) return level;
-    if (blind_try_due && retry < 0 && cycle_ >= cost.retry_cycle) retry = level;
+    const bool retry_due = cost.measured && cycle_ >= cost.retry_cycle;
+    if (expectedComfortable(cost) || (cost.left_running && retry_due) ||
+        (blind_try_due && !cost.measured)) {
+      return level;
+    }
+    if (blind_try_due && retry < 0 && retry_due) retry = level;
   }
   return retry;
 }

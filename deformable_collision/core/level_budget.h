@@ -40,9 +40,10 @@ struct LevelBudgetTuning {
 /// has headroom, and left at once if they do not fit with headroom: the next finer one
 /// never run at once (the first cycles climb from level 0); a level left as too slow when
 /// the running level's estimate has since fallen enough that it would scale to fit with
-/// headroom, at most once per explore_period_cycles; blind tries (levels never run, or
-/// due for a retry) after explore_period_cycles, doubled for each blind or scaled try in
-/// a row that failed. The first cycle at a level after a switch pays for the switch and is left out
+/// headroom, or when its retry is due if it was left as the running level, at most once
+/// per explore_period_cycles; blind tries (levels never run, or tries that failed and are
+/// due for a retry) after explore_period_cycles, doubled for each try in a row that
+/// failed. The first cycle at a level after a switch pays for the switch and is left out
 /// of its estimate: a level is judged from its second cycle on, so each switch stays for at
 /// least two cycles, but for a try whose first cycle overran the budget (going finer, the
 /// switch costs little), which is left at once. record() allocates nothing.
@@ -81,10 +82,12 @@ class LevelBudget {
     std::uint64_t measured_cycle = 0;  ///< The cycle of its last cost.
     std::uint64_t retry_cycle = 0;     ///< Before this cycle, no try comes back to it.
     int failed_tries = 0;              ///< Tries in a row that left it as too slow.
-    /// The level it was last left for, if measured then, and that level's estimate then:
-    /// the scene's cost since scales this level's estimate.
+    /// The level it was last left for and that level's estimate after its first judged
+    /// cycle there: the scene's cost since scales this level's estimate.
     int reference_level = -1;
     double reference_ms = 0.0;
+    /// It was last left as the running level, not as a try that failed.
+    bool left_running = false;
     bool measured = false;
   };
 
@@ -120,6 +123,8 @@ class LevelBudget {
   std::uint64_t cycle_ = 0;
   std::uint64_t last_try_cycle_ = 0;
   int failed_tries_in_a_row_ = 0;
+  /// A level just left, whose reference is the next judged cycle's level and estimate; -1.
+  int awaiting_reference_ = -1;
 };
 
 }  // namespace deformable_collision

@@ -180,6 +180,25 @@ TEST(LevelBudget, BlindTriesThatFailWaitLongerEachTimeUpToTheirMostDoublings) {
   }
 }
 
+TEST(LevelBudget, ALevelLeftAfterASpikeComesBackWithinAPeriodWhileBlindTriesBackOff) {
+  // Level 1 fits with headroom; levels 2 and 3 overrun at every try, so blind tries wait
+  // the longest. One busy cycle at level 1 leaves it; it is back a period later.
+  const std::vector<double> costs = {1.0, 5.0, 20.0, 20.0};
+  LevelBudget budget(10.0, 3);
+  for (int cycle = 0; cycle < 600; ++cycle) budget.record(costs[budget.level()]);
+  ASSERT_EQ(budget.level(), 1);
+  budget.record(40.0);
+  ASSERT_EQ(budget.level(), 0);
+  const int period = LevelBudgetTuning{}.explore_period_cycles;
+  int cycle = 0;
+  while (budget.level() == 0 && cycle < 10 * period) {
+    budget.record(costs[0]);
+    ++cycle;
+  }
+  EXPECT_EQ(budget.level(), 1);
+  EXPECT_LE(cycle, period + 2);
+}
+
 TEST(LevelBudget, ALevelLeftAsTooSlowIsTriedAgainOnceTheRunningLevelShowsTheSceneGotCheaper) {
   // Level 1 costs twice level 0: too slow at 12 ms against 10, fine once the scene costs
   // half as much. The running level's cost shows the change: level 1 is tried within one
