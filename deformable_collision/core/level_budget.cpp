@@ -183,8 +183,9 @@ int LevelBudget::finerLevelToTry() const {
   if (level_ < maxLevel() && !levels_[level_ + 1].measured) return level_ + 1;
   const std::uint64_t period = std::uint64_t(tuning_.explore_period_cycles);
   if (cycle_ < last_try_cycle_ + period) return -1;
-  // Blind tries (of a level never run, or due for a retry) wait longer after each that
-  // failed; a level that the running one's cost says got cheap enough is tried at once.
+  // Blind tries (of a level never run, or of one whose try failed and whose retry is due)
+  // wait longer after each try in a row that failed; a level that the running one's cost
+  // says got cheap enough is tried at once.
   const int doublings = std::min(failed_tries_in_a_row_, tuning_.max_blind_try_doublings);
   const bool blind_try_due = cycle_ >= last_try_cycle_ + (period << doublings);
   // Coarse to fine: a coarser level is likelier to fit; levels never run before retries,

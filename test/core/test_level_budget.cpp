@@ -221,26 +221,24 @@ TEST(LevelBudget, ALevelLeftAsTooSlowIsTriedAgainOnceTheRunningLevelShowsTheScen
   EXPECT_EQ(budget.level(), 1);
 }
 
-TEST(LevelBudget, ATryThatOverrunsOnItsSecondCycleComesBackAtOnce) {
-  LevelBudget budget(10.0, 1);
-  budget.record(kFinerSwitchCostMs);
-  budget.record(1.0);
-  ASSERT_EQ(budget.level(), 1);
-  budget.record(kFinerSwitchCostMs);
-  EXPECT_EQ(budget.level(), 1);
-  budget.record(12.0);
-  EXPECT_EQ(budget.level(), 0);
-  EXPECT_EQ(budget.estimateMs(1), 12.0);
-}
-
-TEST(LevelBudget, ATryWithinBudgetButWithoutHeadroomIsLeft) {
-  LevelBudget budget(10.0, 1);
-  budget.record(kFinerSwitchCostMs);
-  budget.record(1.0);
-  ASSERT_EQ(budget.level(), 1);
-  budget.record(kFinerSwitchCostMs);
-  budget.record(9.0);  // fits, but above 0.8 x 10
-  EXPECT_EQ(budget.level(), 0);
+TEST(LevelBudget, ATryWhoseSwitchCycleFitsIsJudgedOnItsSecondCycleForHeadroom) {
+  struct Case {
+    const char* name;
+    double second_cycle_ms;
+    int level_after;
+  };
+  for (const Case& c : {Case{"overruns", 12.0, 0}, Case{"fits without headroom", 9.0, 0},
+                        Case{"has headroom", 7.0, 1}}) {
+    LevelBudget budget(10.0, 1);
+    budget.record(kFinerSwitchCostMs);
+    budget.record(1.0);
+    ASSERT_EQ(budget.level(), 1) << c.name;
+    budget.record(kFinerSwitchCostMs);
+    ASSERT_EQ(budget.level(), 1) << c.name;
+    budget.record(c.second_cycle_ms);
+    EXPECT_EQ(budget.level(), c.level_after) << c.name;
+    EXPECT_EQ(budget.estimateMs(1), c.second_cycle_ms) << c.name;
+  }
 }
 
 TEST(LevelBudget, AChosenLevelIsKeptWhileItFitsAndLeftOnceItsEstimateOverruns) {
