@@ -286,9 +286,9 @@ struct AutoRun {
   std::vector<int> cycles_at_level;
 };
 
-std::optional<AutoRun> runAuto(int settle, int cycles,
-                               const std::vector<Eigen::Vector3d>& settled_points,
+std::optional<AutoRun> runAuto(int settle, const std::vector<Eigen::Vector3d>& settled_points,
                                double budget_ms) {
+  constexpr int cycles = AutoRun::kCycles;
   auto scene = settled(dc::DemoScene::kPile, settle);
   if (softPoints(*scene) != settled_points) {
     std::fprintf(stderr, "bench_scene s2: the settled pile differs between runs\n");
@@ -310,8 +310,9 @@ std::optional<AutoRun> runAuto(int settle, int cycles,
 }
 
 /// The auto run's line and s2_auto.csv: levels as "level:cycles" pairs joined by ';'.
-void reportAuto(const std::string& results_dir, const AutoRun& run, int cycles, double budget_ms,
+void reportAuto(const std::string& results_dir, const AutoRun& run, double budget_ms,
                 double finest_total_ms) {
+  constexpr int cycles = AutoRun::kCycles;
   int lowest = -1, highest = 0;
   double mean_level = 0.0;
   std::string levels;
@@ -391,9 +392,9 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
   }
   const double finest_total_ms = means[finest].detection_ms + means[finest].response_ms;
   const double budget_ms = 0.5 * finest_total_ms;
-  const std::optional<AutoRun> run = runAuto(settle, AutoRun::kCycles, settled_points, budget_ms);
+  const std::optional<AutoRun> run = runAuto(settle, settled_points, budget_ms);
   if (!run) return 1;
-  reportAuto(results_dir, *run, AutoRun::kCycles, budget_ms, finest_total_ms);
+  reportAuto(results_dir, *run, budget_ms, finest_total_ms);
   reportRest(results_dir, finest);
   return 0;
 }

@@ -186,8 +186,7 @@ int LevelBudget::finerLevelToTry() const {
   // Blind tries (of a level never run, or of one whose try failed and whose retry is due)
   // wait longer after each try in a row that failed; a level that the running one's cost
   // says got cheap enough is tried at once.
-  const int doublings = std::min(failed_tries_in_a_row_, tuning_.max_blind_try_doublings);
-  const bool blind_try_due = cycle_ >= last_try_cycle_ + (period << doublings);
+  const bool blind_try_due = cycle_ >= last_try_cycle_ + (period << failed_tries_in_a_row_);
   // Coarse to fine: a coarser level is likelier to fit; levels never run before retries,
   // which would otherwise take every blind try from the finer levels. A level that ran
   // until it overran (a busy spell of the host, or the scene got dearer for a while) is

@@ -122,6 +122,7 @@ class LevelBudget {
   bool settling_ = true;
   std::uint64_t cycle_ = 0;
   std::uint64_t last_try_cycle_ = 0;
+  /// Tries in a row that failed, at most max_blind_try_doublings: the blind tries' doublings.
   int failed_tries_in_a_row_ = 0;
   /// A level just left, whose reference is the next judged cycle's level and estimate; -1.
   int awaiting_reference_ = -1;
