@@ -467,8 +467,8 @@ struct HierarchyQuery::Descent {
 
   /// Stacks the children of a's node (if `split_a`, else of b's) that come within reach of
   /// the other node, and returns the new stack height. Children go last first, so that
-  /// contacts come in depth-first order; each is written on top and kept if it is within
-  /// reach. The stack grows only in the first queries.
+  /// contacts come in depth-first order; the overlap a pair carries (a square root) is
+  /// computed only for those within reach. The stack grows only in the first queries.
   [[gnu::always_inline]] std::size_t stackChildrenInReach(std::vector<PendingPair>& stack,
                                                           std::size_t stacked,
                                                           const PendingPair& pair,
@@ -484,23 +484,25 @@ struct HierarchyQuery::Descent {
       for (std::uint32_t c = na.first_child + na.child_count; c-- > na.first_child;) {
         if (outOfReachUnmeasured(a, c, nb.sphere)) continue;
         const Sphere& child = a.current(c, leaf_limit).sphere;
-        stack[stacked] = {c, pair.node_b, leastOverlap(pair.least_overlap_m, child, nb.sphere)};
-        if (withinReach(child, nb.sphere, contact_distance_m) &&
-            !slabs.apart(c, child, pair.node_b, nb.sphere, contact_distance_m)) {
-          a.prefetchChildren(c);
-          ++stacked;
+        if (!withinReach(child, nb.sphere, contact_distance_m) ||
+            slabs.apart(c, child, pair.node_b, nb.sphere, contact_distance_m)) {
+          continue;
         }
+        stack[stacked++] = {c, pair.node_b,
+                            leastOverlap(pair.least_overlap_m, child, nb.sphere)};
+        a.prefetchChildren(c);
       }
     } else {
       for (std::uint32_t c = nb.first_child + nb.child_count; c-- > nb.first_child;) {
         if (outOfReachUnmeasured(b, c, na.sphere)) continue;
         const Sphere& child = b.current(c, leaf_limit).sphere;
-        stack[stacked] = {pair.node_a, c, leastOverlap(pair.least_overlap_m, na.sphere, child)};
-        if (withinReach(na.sphere, child, contact_distance_m) &&
-            !slabs.apart(pair.node_a, na.sphere, c, child, contact_distance_m)) {
-          b.prefetchChildren(c);
-          ++stacked;
+        if (!withinReach(na.sphere, child, contact_distance_m) ||
+            slabs.apart(pair.node_a, na.sphere, c, child, contact_distance_m)) {
+          continue;
         }
+        stack[stacked++] = {pair.node_a, c,
+                            leastOverlap(pair.least_overlap_m, na.sphere, child)};
+        b.prefetchChildren(c);
       }
     }
     return stacked;
