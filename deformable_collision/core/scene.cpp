@@ -27,10 +27,7 @@ Scene::Object::Object(const ObjectConfig& object_config, std::vector<Eigen::Vect
     : config(object_config),
       body(std::move(rest_points), object_config.shape),
       tree(body, tree_config) {
-  if (dynamic()) {
-    dents.reserve(body.pointCount(), tree.nodeCount());
-    pair_nodes.reserve(tree.nodeCount());
-  }
+  if (dynamic()) dents.reserve(body.pointCount(), tree.nodeCount());
 }
 
 Scene::Scene(const SceneConfig& config) : config_(config) {

@@ -252,6 +252,19 @@ class Scene {
   // The response (scene_response.cpp, scene_contact_normal.cpp).
   struct ContactPush;
   struct ResolvingPair;
+  /// Scratch of one side of the dynamic pair being resolved: its contact nodes, and per node
+  /// its number of the pair's contacts (0 outside them) and how far its points reach along
+  /// the pair's normal, towards the partner. One per side for the whole scene, sized to the
+  /// largest tree met: an object's own would be cold in memory each time it is resolved.
+  struct PairContactNodes {
+    /// Makes room for a tree of `node_count` nodes; allocates only for a larger one than
+    /// before.
+    void fit(std::size_t node_count);
+
+    std::vector<std::uint32_t> nodes;
+    std::vector<std::uint32_t> contacts_of_node;
+    std::vector<double> reach_of_node;
+  };
   void respond();
   /// Counts each object's hops to a fixed one over touching objects (support_depth).
   void rankSupport();
@@ -279,7 +292,8 @@ class Scene {
                    std::size_t run_begin, std::size_t run_end);
   void holdClearContact(ResolvingPair& pair);
   bool heldContact(const ResolvingPair& pair);
-  /// How far the object's mean velocity carried it in this cycle's step (0 if not dynamic).
+  /// How far an object in contact was carried by its mean velocity in this cycle's step (0
+  /// if not dynamic).
   Eigen::Vector3d stepOf(const Object& object) const;
   void undoStepApproach(const ResolvingPair& pair, const Eigen::Vector3d& normal,
                         Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const;
@@ -338,6 +352,8 @@ class Scene {
   LevelCosts detection_costs_;
   std::vector<SceneContact> contacts_;
   std::vector<ContactPush> pushes_;
+  PairContactNodes pair_nodes_a_;
+  PairContactNodes pair_nodes_b_;
   std::vector<std::uint32_t> support_queue_;
   std::vector<ContactRun> contact_runs_;  ///< The pairs of contacts_, in its order.
   // The last cycle's contacts and runs, for the pairs that did not move since; swapped with

@@ -125,42 +125,55 @@ double reachAlong(const SphereTree& tree, std::uint32_t leaf, const Eigen::Vecto
 // into each other; the two sides of the contact do not. Also measures how far each contact
 // node reaches along it, towards the other object.
 Eigen::Vector3d Scene::separatingNormal(const ResolvingPair& pair) {
-  Object& a = pair.a;
-  Object& b = pair.b;
+  SphereTree& tree_a = pair.a.tree;
+  SphereTree& tree_b = pair.b.tree;
+  PairContactNodes& nodes_a = pair_nodes_a_;
+  PairContactNodes& nodes_b = pair_nodes_b_;
+  nodes_a.fit(tree_a.nodeCount());
+  nodes_b.fit(tree_b.nodeCount());
   for (std::size_t k = pair.run_begin; k < pair.run_end; ++k) {
     const SphereContact& c = contacts_[k].contact;
     // Where a node's points lie is read below, from node records the query did not touch:
     // asked for now, their cache misses overlap instead of coming one node at a time.
-    if (a.pair_nodes.contacts_of_node[c.node_a]++ == 0) {
-      a.pair_nodes.nodes.push_back(c.node_a);
-      __builtin_prefetch(&a.tree.node(c.node_a).first_point);
+    if (nodes_a.contacts_of_node[c.node_a]++ == 0) {
+      nodes_a.nodes.push_back(c.node_a);
+      __builtin_prefetch(&tree_a.node(c.node_a).first_point);
     }
-    if (b.pair_nodes.contacts_of_node[c.node_b]++ == 0) {
-      b.pair_nodes.nodes.push_back(c.node_b);
-      __builtin_prefetch(&b.tree.node(c.node_b).first_point);
+    if (nodes_b.contacts_of_node[c.node_b]++ == 0) {
+      nodes_b.nodes.push_back(c.node_b);
+      __builtin_prefetch(&tree_b.node(c.node_b).first_point);
     }
   }
   const double spread = 0.1 * config_.contact_distance_m;
-  const Eigen::Vector3d across = separatingDirection(
-      {a.tree, a.pair_nodes.nodes, a.pair_nodes.contacts_of_node},
-      {b.tree, b.pair_nodes.nodes, b.pair_nodes.contacts_of_node}, pair.leaves, spread * spread);
+  const Eigen::Vector3d across =
+      separatingDirection({tree_a, nodes_a.nodes, nodes_a.contacts_of_node},
+                          {tree_b, nodes_b.nodes, nodes_b.contacts_of_node}, pair.leaves,
+                          spread * spread);
   Eigen::Vector3d normal = pair.side_of_a;
   if (across.squaredNorm() > 0.0) {
     normal = across.dot(pair.side_of_a) < 0.0 ? Eigen::Vector3d(-across) : across;
   }
   const double length = normal.norm();
   normal = length > 0.0 ? Eigen::Vector3d(normal / length) : Eigen::Vector3d::UnitZ();
-  for (const std::uint32_t node : a.pair_nodes.nodes) {
-    if (pair.leaves) a.pair_nodes.reach_of_node[node] = reachAlong(a.tree, node, -normal);
-    a.pair_nodes.contacts_of_node[node] = 0;
+  for (const std::uint32_t node : nodes_a.nodes) {
+    if (pair.leaves) nodes_a.reach_of_node[node] = reachAlong(tree_a, node, -normal);
+    nodes_a.contacts_of_node[node] = 0;
   }
-  for (const std::uint32_t node : b.pair_nodes.nodes) {
-    if (pair.leaves) b.pair_nodes.reach_of_node[node] = reachAlong(b.tree, node, normal);
-    b.pair_nodes.contacts_of_node[node] = 0;
+  for (const std::uint32_t node : nodes_b.nodes) {
+    if (pair.leaves) nodes_b.reach_of_node[node] = reachAlong(tree_b, node, normal);
+    nodes_b.contacts_of_node[node] = 0;
   }
-  a.pair_nodes.nodes.clear();
-  b.pair_nodes.nodes.clear();
+  nodes_a.nodes.clear();
+  nodes_b.nodes.clear();
   return normal;
+}
+
+void Scene::PairContactNodes::fit(std::size_t node_count) {
+  if (contacts_of_node.size() >= node_count) return;
+  // Outside a pair every count is 0; the new ones too.
+  contacts_of_node.resize(node_count, 0);
+  reach_of_node.resize(node_count, 0.0);
+  nodes.reserve(node_count);
 }
 
 }  // namespace deformable_collision

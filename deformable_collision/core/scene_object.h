@@ -94,17 +94,6 @@ struct DentScratch {
   std::vector<PointDisplacement> displacements;
 };
 
-/// Scratch of the dynamic pair being resolved: its contact nodes on this object, and per
-/// node its number of the pair's contacts (0 outside them) and how far its points reach
-/// along the pair's normal, towards the partner.
-struct PairContactNodes {
-  void reserve(std::size_t node_count);
-
-  std::vector<std::uint32_t> nodes;
-  std::vector<std::uint32_t> contacts_of_node;
-  std::vector<double> reach_of_node;
-};
-
 /// The side each partner touched this object from, kept while the contact lasts: an object
 /// pushed past the middle of a thin wall must still be pushed back, not through.
 struct ContactMemory {
@@ -153,7 +142,6 @@ struct Scene::Object {
   NodeSlabs slabs;
   NodeSlabs rest_slabs;
   scene_internal::DentScratch dents;   ///< Dynamic objects.
-  scene_internal::PairContactNodes pair_nodes;  ///< Dynamic objects.
   scene_internal::ContactMemory contact_memory;
   /// Tracked objects fitted to unordered clouds: made on the first such cloud.
   std::optional<CloudRegistration> registration;
@@ -167,7 +155,11 @@ struct Scene::Object {
   // The whole object's move in this response, summed over its pairs.
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   Eigen::Vector3d velocity_change = Eigen::Vector3d::Zero();
-  /// Mean velocity once velocity_change is applied (zero for objects the response never moves).
+  /// Objects in contact: the body's mean velocity as the response found it (zero for objects
+  /// the response never moves). Nothing changes it before applyObjectResponse, and the pairs
+  /// and the velocity passes read it many times, each read a sum over the clusters.
+  Eigen::Vector3d mean_velocity = Eigen::Vector3d::Zero();
+  /// Objects in contact: mean velocity once velocity_change is applied.
   Eigen::Vector3d velocity_after = Eigen::Vector3d::Zero();
 };
 

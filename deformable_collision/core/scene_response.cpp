@@ -36,12 +36,6 @@ Eigen::Vector3d stopSliding(const Eigen::Vector3d& relative, const Eigen::Vector
 
 namespace scene_internal {
 
-void PairContactNodes::reserve(std::size_t node_count) {
-  contacts_of_node.assign(node_count, 0);
-  reach_of_node.assign(node_count, 0.0);
-  nodes.reserve(node_count);
-}
-
 ContactMemory::ContactSide* ContactMemory::find(std::uint32_t partner) {
   for (ContactSide& side : sides) {
     if (side.partner == partner) return &side;
@@ -108,6 +102,13 @@ void Scene::respond() {
   // Objects are separated to half the contact distance: resting objects stay in contact
   // (closer than the contact distance) and are still held apart.
   ++cycle_count_;
+  for (const ContactRun& run : contact_runs_) {
+    for (const std::uint32_t index : {run.object_a, run.object_b}) {
+      Object& object = *objects_[index];
+      object.mean_velocity =
+          object.dynamic() ? object.body.meanVelocity() : Eigen::Vector3d::Zero();
+    }
+  }
   rankSupport();
   for (auto& object : objects_) object->contact_memory.forgetBefore(cycle_count_);
   // Each pair of touching objects is resolved in two parts. The whole object moves by the
@@ -141,10 +142,11 @@ void Scene::respond() {
   }
   repeatVelocityExchanges();
   stopApproachToFixedPartners();
-  for (auto& object : objects_) {
-    object->velocity_after = object->dynamic()
-                                 ? Eigen::Vector3d(object->body.meanVelocity() + object->velocity_change)
-                                 : Eigen::Vector3d::Zero();
+  for (const ContactRun& run : contact_runs_) {
+    for (const std::uint32_t index : {run.object_a, run.object_b}) {
+      Object& object = *objects_[index];
+      object.velocity_after = object.mean_velocity + object.velocity_change;
+    }
   }
   for (auto& object : objects_) {
     if (object->dynamic()) applyObjectResponse(*object);
@@ -172,11 +174,8 @@ void Scene::repeatVelocityExchanges() {
 void Scene::exchangeVelocity(const VelocityExchange& exchange) {
   Object& a = *objects_[exchange.object_a];
   Object& b = *objects_[exchange.object_b];
-  const Eigen::Vector3d velocity_a =
-      a.dynamic() ? Eigen::Vector3d(a.body.meanVelocity() + a.velocity_change) : Eigen::Vector3d::Zero();
-  const Eigen::Vector3d velocity_b =
-      b.dynamic() ? Eigen::Vector3d(b.body.meanVelocity() + b.velocity_change) : Eigen::Vector3d::Zero();
-  const Eigen::Vector3d relative = velocity_a - velocity_b;
+  const Eigen::Vector3d relative =
+      (a.mean_velocity + a.velocity_change) - (b.mean_velocity + b.velocity_change);
   const Eigen::Vector3d change = exchange.sticks
                                      ? stopSliding(relative, exchange.normal)
                                      : stopApproach(relative, exchange.normal, config_.friction);
@@ -199,7 +198,7 @@ void Scene::stopApproachToFixedPartners() {
     const auto* side = moving.contact_memory.find(a.dynamic() ? run.object_b : run.object_a);
     if (!side || side->cycle != cycle_count_) continue;
     const double approach =
-        (moving.body.meanVelocity() + moving.velocity_change).dot(side->normal);
+        (moving.mean_velocity + moving.velocity_change).dot(side->normal);
     if (approach < 0.0) moving.velocity_change -= approach * side->normal;
   }
 }
@@ -464,8 +463,8 @@ bool Scene::pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& c
   const Object& a = pair.a;
   const Object& b = pair.b;
   push.normal = pair.dynamic_normal;
-  const double overlap = pair.leaves ? b.pair_nodes.reach_of_node[c.node_b] +
-                                           a.pair_nodes.reach_of_node[c.node_a] +
+  const double overlap = pair.leaves ? pair_nodes_b_.reach_of_node[c.node_b] +
+                                           pair_nodes_a_.reach_of_node[c.node_a] +
                                            config_.contact_distance_m
                                      : c.depth_m;
   const double depth = overlap - 0.5 * config_.contact_distance_m -
@@ -555,8 +554,7 @@ void Scene::undoStepApproach(const ResolvingPair& pair, const Eigen::Vector3d& n
 }
 
 Eigen::Vector3d Scene::stepOf(const Object& object) const {
-  return object.dynamic() ? Eigen::Vector3d(config_.dt_s * object.body.meanVelocity())
-                          : Eigen::Vector3d::Zero();
+  return config_.dt_s * object.mean_velocity;
 }
 
 bool Scene::heldContact(const ResolvingPair& pair) {
