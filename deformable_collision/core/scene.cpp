@@ -175,7 +175,7 @@ void Scene::cycle() {
   const auto start = Clock::now();
   for (auto& object : objects_) {
     if (!object->dynamic()) continue;
-    object->center_before_step = object->body.meanPosition();
+    object->center_before_step = object->body.centerOfMass();
     object->body.step(config_.dt_s, config_.gravity_mps2);
     object->stale = true;
     ++stats_.objects_moved;

@@ -146,8 +146,9 @@ struct Scene::Object {
   /// Tracked objects fitted to unordered clouds: made on the first such cloud.
   std::optional<CloudRegistration> registration;
 
-  /// Dynamic objects: the mean of their points before this cycle's step, where a new
-  /// contact's side is seen from (a long step may carry the centre past a thin floor).
+  /// Dynamic objects: their centre of mass before this cycle's step, where a new contact's
+  /// side is seen from (a long step may carry the centre past a thin floor). From the
+  /// clusters: the mean of the points read every point of every object each cycle.
   Eigen::Vector3d center_before_step = Eigen::Vector3d::Zero();
   /// Contacts between this object and a fixed one, counted in hops over touching objects
   /// (0: fixed itself); unsupported objects have the largest value.

@@ -228,6 +228,9 @@ class ShapeMatchingBody {
 
   /// The whole object's rigid motion (O(clusters)).
   RigidMotion rigidMotion() const;
+  /// The centre of mass of the points, a deferred move included, from the clusters' centres
+  /// (O(clusters)): meanPosition() to rounding, without reading the points.
+  Eigen::Vector3d centerOfMass() const;
 
   /// Mass-weighted mean velocity of the object, from the fit sums (O(clusters)).
   Eigen::Vector3d meanVelocity() const;

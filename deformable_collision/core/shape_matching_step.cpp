@@ -23,6 +23,20 @@ using detail::PartialMoments;
 using detail::SlotLanes;
 using detail::StepMotion;
 
+/// The centre of mass of the whole object from the clusters' centres, each weighted by its
+/// share of the point masses; summed about the first one's (coordinates may be 1e5 m).
+Eigen::Vector3d objectCenterOfMass(const std::vector<Cluster>& clusters,
+                                   const std::vector<ClusterDeformation>& deformations) {
+  double mass = 0.0;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  const Eigen::Vector3d origin = deformations[0].center_of_mass;
+  for (std::size_t k = 0; k < clusters.size(); ++k) {
+    mass += clusters[k].total_weight_kg;
+    sum += clusters[k].total_weight_kg * (deformations[k].center_of_mass - origin);
+  }
+  return origin + sum / mass;
+}
+
 /// The rigid motion of the whole object, which damping keeps, from the clusters' sums.
 RigidMotion objectRigidMotion(const std::vector<Cluster>& clusters,
                               const std::vector<ClusterDeformation>& deformations,
@@ -30,13 +44,11 @@ RigidMotion objectRigidMotion(const std::vector<Cluster>& clusters,
   RigidMotion object;
   double mass = 0.0;
   Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
-  const Eigen::Vector3d origin = deformations[0].center_of_mass;
   for (std::size_t k = 0; k < clusters.size(); ++k) {
     mass += clusters[k].total_weight_kg;
-    object.center += clusters[k].total_weight_kg * (deformations[k].center_of_mass - origin);
     momentum += cluster_sums[k].momentum;
   }
-  object.center = origin + object.center / mass;
+  object.center = objectCenterOfMass(clusters, deformations);
   object.velocity = momentum / mass;
   Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d& inertia = object.inertia;
@@ -351,6 +363,10 @@ void ShapeMatchingBody::followRigidMove(const Eigen::Vector3d& offset_m,
 
 RigidMotion ShapeMatchingBody::rigidMotion() const {
   return objectRigidMotion(clusters_, deformations_, cluster_sums_);
+}
+
+Eigen::Vector3d ShapeMatchingBody::centerOfMass() const {
+  return objectCenterOfMass(clusters_, deformations_);
 }
 
 void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements) {

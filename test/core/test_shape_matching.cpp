@@ -781,6 +781,65 @@ TEST(RigidMotion, IsTheMotionOfTheWholeObject) {
   EXPECT_LT((motion.inertia - inertia).norm(), 1e-12 * inertia.norm());
 }
 
+struct CenterOfMassCase {
+  std::string name;
+  DeformationMode mode;
+  Eigen::Vector3d origin;
+};
+
+class CenterOfMassTest : public ::testing::TestWithParam<CenterOfMassCase> {};
+
+// The scene sees a new contact's side from the centre of mass, taken from the clusters'
+// centres: it must follow every way the points move, to rounding.
+TEST_P(CenterOfMassTest, IsTheMeanOfThePointsAfterEveryKindOfMove) {
+  const CenterOfMassCase& c = GetParam();
+  ShapeMatchingConfig config = configFor(c.mode, 4);
+  config.damping = 0.1;
+  const Points rest = mapped(sampleEllipsoid(400, {0.3, 0.2, 0.1}, 61),
+                             [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return c.origin + p; });
+  ShapeMatchingBody body(rest, config);
+  const double tolerance = 1e-12 * (1.0 + c.origin.norm());
+  const auto expectMean = [&](const std::string& after) {
+    EXPECT_LT((body.centerOfMass() - body.meanPosition()).norm(), tolerance)
+        << c.name << ", after " << after;
+  };
+  expectMean("construction");
+  body.setVelocities(mapped(rest, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    return Eigen::Vector3d(0.4, -1.0, 2.0).cross(p - c.origin) + Eigen::Vector3d(0.5, 0.0, 0.1);
+  }));
+  for (int s = 0; s < 5; ++s) body.step(0.01, Eigen::Vector3d(0.0, 0.0, -9.81));
+  expectMean("steps");
+  body.moveRigidly({0.01, -0.02, 0.005}, {0.1, 0.0, 0.0}, {0.0, 1.0, 0.5}, body.centerOfMass());
+  expectMean("a turn");
+  body.deferRigidMove({-0.003, 0.004, 0.02}, {0.0, 0.2, 0.0});
+  expectMean("a deferred move");
+  std::vector<PointDisplacement> dents;
+  for (std::uint32_t i = 0; i < 400; i += 7) {
+    dents.push_back({i, Eigen::Vector3d(0.0, 0.0, 0.002 * (i % 5)), Eigen::Vector3d::Zero()});
+  }
+  body.displacePoints(dents);
+  expectMean("dents");
+  body.step(0.01, Eigen::Vector3d(0.0, 0.0, -9.81));
+  expectMean("a step after dents");
+  body.track(mapped(rest, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+    const Eigen::Vector3d arm = p - c.origin;
+    return c.origin + Eigen::Vector3d(1.1 * arm.x(), arm.y(), 0.9 * arm.z() + 0.05);
+  }));
+  expectMean("a tracked cloud");
+  body.setPositions(rest);
+  expectMean("placed at rest");
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    ModesNearAndFarFromTheOrigin, CenterOfMassTest,
+    ::testing::Values(
+        CenterOfMassCase{"Rigid", DeformationMode::kRigid, Eigen::Vector3d::Zero()},
+        CenterOfMassCase{"Linear", DeformationMode::kLinear, Eigen::Vector3d::Zero()},
+        CenterOfMassCase{"Quadratic", DeformationMode::kQuadratic, Eigen::Vector3d::Zero()},
+        CenterOfMassCase{"QuadraticFarOut", DeformationMode::kQuadratic,
+                         Eigen::Vector3d(1e5, -2e4, 3e3)}),
+    [](const auto& info) { return info.param.name; });
+
 TEST(SetVelocities, SpinIsKeptByTheDampingAndMomentumConserved) {
   ShapeMatchingConfig config = configFor(DeformationMode::kLinear, 2);
   config.damping = 0.5;
