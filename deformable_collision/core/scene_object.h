@@ -147,8 +147,8 @@ struct Scene::Object {
   std::optional<CloudRegistration> registration;
 
   /// Dynamic objects: their centre of mass before this cycle's step, where a new contact's
-  /// side is seen from (a long step may carry the centre past a thin floor). From the
-  /// clusters: the mean of the points read every point of every object each cycle.
+  /// side is seen from (a long step may carry the centre past a thin floor). Taken from the
+  /// clusters' centres: the points' mean read every point of every object each cycle.
   Eigen::Vector3d center_before_step = Eigen::Vector3d::Zero();
   /// Contacts between this object and a fixed one, counted in hops over touching objects
   /// (0: fixed itself); unsupported objects have the largest value.
