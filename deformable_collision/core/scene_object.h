@@ -160,6 +160,9 @@ struct Scene::Object {
   /// the response never moves). Nothing changes it before applyObjectResponse, and the pairs
   /// and the velocity passes read it many times, each read a sum over the clusters.
   Eigen::Vector3d mean_velocity = Eigen::Vector3d::Zero();
+  /// The response (Scene's cycle count) mean_velocity was read for: once per object, however
+  /// many pairs it is in.
+  std::uint64_t mean_velocity_cycle = 0;
   /// Objects in contact: mean velocity once velocity_change is applied.
   Eigen::Vector3d velocity_after = Eigen::Vector3d::Zero();
 };

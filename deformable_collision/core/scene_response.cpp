@@ -105,6 +105,8 @@ void Scene::respond() {
   for (const ContactRun& run : contact_runs_) {
     for (const std::uint32_t index : {run.object_a, run.object_b}) {
       Object& object = *objects_[index];
+      if (object.mean_velocity_cycle == cycle_count_) continue;
+      object.mean_velocity_cycle = cycle_count_;
       object.mean_velocity =
           object.dynamic() ? object.body.meanVelocity() : Eigen::Vector3d::Zero();
     }
