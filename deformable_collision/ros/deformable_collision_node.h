@@ -24,6 +24,7 @@
 #include "deformable_collision/core/scene.h"
 #include "deformable_collision/ros/cloud_handoff.h"
 #include "deformable_collision/ros/contact_service.h"
+#include "deformable_collision/ros/counted_publisher.h"
 #include "deformable_collision/ros/hierarchy_markers.h"
 #include "deformable_collision/ros/latency_window.h"
 #include "deformable_collision/ros/node_config.h"
@@ -64,7 +65,7 @@ class DeformableCollisionNode {
   struct ObjectSlot {
     ObjectParams params;
     ros::Subscriber subscriber;
-    ros::Publisher deformed;
+    CountedPublisher deformed;
     /// Set by the cycle once the object is in the scene, and the cloud size a tracked object
     /// keeps (its first cloud's; 0 until then), read by the reader to check clouds early.
     std::atomic<bool> exists{false};
@@ -202,9 +203,9 @@ class DeformableCollisionNode {
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
 
-  ros::Publisher contacts_publisher_;
-  ros::Publisher hierarchy_publisher_;
-  ros::Publisher stats_publisher_;
+  CountedPublisher contacts_publisher_;
+  CountedPublisher hierarchy_publisher_;
+  CountedPublisher stats_publisher_;
   ros::ServiceServer set_level_service_;
   ros::ServiceServer get_contacts_service_;
   ros::Timer timer_;
@@ -242,6 +243,8 @@ class DeformableCollisionNode {
   double latency_period_s_ = 0.0;  ///< The length of the period summarised.
   std::uint64_t latency_periods_ = 0;
   Stats stats_message_;
+  /// The last ~contacts message, filled again in place while nobody else holds it.
+  boost::shared_ptr<ContactArray> contacts_message_;
 
   // Last: they start after everything they use exists and stop before it goes.
   ros::AsyncSpinner reader_spinner_;
