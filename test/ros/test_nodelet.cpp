@@ -509,6 +509,80 @@ TEST(NodeletConfiguration, RefusesABadParameterNamingIt) {
   EXPECT_THROW(DeformableCollisionNode(ros::NodeHandle(), empty), std::invalid_argument);
 }
 
+/// Whether two contact messages hold the same contacts, field by field.
+bool sameContacts(const ContactArray& a, const ContactArray& b) {
+  if (a.level != b.level || a.contacts.size() != b.contacts.size()) return false;
+  for (std::size_t k = 0; k < a.contacts.size(); ++k) {
+    const Contact& x = a.contacts[k];
+    const Contact& y = b.contacts[k];
+    if (x.object_a != y.object_a || x.object_b != y.object_b || x.sphere_a != y.sphere_a ||
+        x.sphere_b != y.sphere_b || x.position.x != y.position.x || x.position.y != y.position.y ||
+        x.position.z != y.position.z || x.depth != y.depth) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// A subscriber in the node's process (a nodelet in the same manager) gets the node's own
+// ~contacts messages, not copies: those it holds must stay as they were published while the
+// node goes on publishing, which reuses a message only once nobody holds it.
+TEST(NodeInProcess, ContactsASubscriberHoldsStayAsPublished) {
+  XmlRpc::XmlRpcValue params;
+  params["fixed_frame"] = "world";
+  params["rate_hz"] = 100;
+  params["gravity_mps2"][0] = 0.0;
+  params["gravity_mps2"][1] = 0.0;
+  params["gravity_mps2"][2] = 0.0;
+  params["contact_distance_m"] = 0.02;
+  params["objects"][0]["name"] = "floor";
+  params["objects"][0]["topic"] = "/in_process/floor";
+  params["objects"][0]["dynamic"] = false;
+  params["objects"][1]["name"] = "probe";
+  params["objects"][1]["topic"] = "/in_process/probe";
+  params["objects"][1]["dynamic"] = false;
+  params["objects"][1]["on_cloud"] = "track";
+  params["objects"][1]["mode"] = "rigid";
+  ros::param::set("/in_process_node", params);
+  DeformableCollisionNode node(ros::NodeHandle(), ros::NodeHandle("/in_process_node"));
+
+  struct Received {
+    ContactArray::ConstPtr held;
+    ContactArray copy;
+  };
+  std::vector<Received> received;
+  ros::NodeHandle handle;
+  ros::Subscriber contacts = handle.subscribe<ContactArray>(
+      "/in_process_node/contacts", 100,
+      boost::function<void(const ContactArray::ConstPtr&)>(
+          [&](const ContactArray::ConstPtr& m) { received.push_back({m, *m}); }));
+  ros::Publisher floor = handle.advertise<PointCloud2>("/in_process/floor", 1, true);
+  ros::Publisher probe = handle.advertise<PointCloud2>("/in_process/probe", 1);
+  floor.publish(cloudOf(floorPoints(), "world"));
+  // The probe slides along the floor, its contacts other ones in each cycle.
+  const Points start = probePoints();
+  constexpr std::size_t kMessages = 40;
+  std::size_t sent = 0;
+  ASSERT_TRUE(waitFor([&] {
+    Points moved = start;
+    for (auto& p : moved) p.x() += 0.003 * static_cast<double>(sent % 50);
+    probe.publish(cloudOf(moved, "world"));
+    ++sent;
+    ros::WallDuration(0.01).sleep();
+    std::size_t touching = 0;
+    for (const auto& r : received) touching += !r.copy.contacts.empty();
+    return touching >= kMessages;
+  })) << received.size() << " messages, none with contacts";
+  std::size_t changed = 0;
+  for (std::size_t i = 0; i < received.size(); ++i) {
+    EXPECT_TRUE(received[i].held->header.stamp == received[i].copy.header.stamp &&
+                sameContacts(*received[i].held, received[i].copy))
+        << "message " << i;
+    if (i > 0 && !sameContacts(received[i].copy, received[i - 1].copy)) ++changed;
+  }
+  EXPECT_GT(changed, kMessages / 2) << "the contacts hardly changed: the test shows nothing";
+}
+
 }  // namespace
 }  // namespace test
 }  // namespace deformable_collision
