@@ -140,16 +140,19 @@ void DeformableCollisionNode::cycleLoop() {
 }
 
 void DeformableCollisionNode::cycleOnClouds() {
-  wake_pending_ = false;
   if (models_waiting_) models_waiting_ = placeModels();
-  // A model waiting for its frame is looked for at rate_hz, as the timer would.
-  cycle_wait_ = models_waiting_ ? cycle_period_ : Clock::duration(kIdleWait);
-  if (!handoff_.ready(config_.cycle_on_all)) return;
   const auto now = Clock::now();
   if (last_cycle_start_ && now < *last_cycle_start_ + cycle_period_) {
+    // Too soon for a cycle: the wait ends when one may start, and looks at the handoff then.
+    // The flag stays set meanwhile, so that clouds arriving before do not wake the thread
+    // each (300 tracked objects at 30 Hz woke it 1900 times a second).
     cycle_wait_ = *last_cycle_start_ + cycle_period_ - now;
     return;
   }
+  wake_pending_ = false;
+  // A model waiting for its frame is looked for at rate_hz, as the timer would.
+  cycle_wait_ = models_waiting_ ? cycle_period_ : Clock::duration(kIdleWait);
+  if (!handoff_.ready(config_.cycle_on_all)) return;
   runCycleLogged();
 }
 
