@@ -140,19 +140,20 @@ void DeformableCollisionNode::cycleLoop() {
 }
 
 void DeformableCollisionNode::cycleOnClouds() {
-  if (models_waiting_) models_waiting_ = placeModels();
-  const auto now = Clock::now();
-  if (last_cycle_start_ && now < *last_cycle_start_ + cycle_period_) {
-    // Too soon for a cycle: the wait ends when one may start, and looks at the handoff then.
-    // The flag stays set meanwhile, so that clouds arriving before do not wake the thread
-    // each (300 tracked objects at 30 Hz woke it 1900 times a second).
-    cycle_wait_ = *last_cycle_start_ + cycle_period_ - now;
-    return;
-  }
+  // Cleared even when it is too soon for a cycle, so that every cloud of the wait wakes the
+  // thread again (1900 times a second in the load test): leaving it set until the wait had
+  // ended saved those wake-ups but made the load test's cycles longer (docs/design.md,
+  // "The node's threads").
   wake_pending_ = false;
+  if (models_waiting_) models_waiting_ = placeModels();
   // A model waiting for its frame is looked for at rate_hz, as the timer would.
   cycle_wait_ = models_waiting_ ? cycle_period_ : Clock::duration(kIdleWait);
   if (!handoff_.ready(config_.cycle_on_all)) return;
+  const auto now = Clock::now();
+  if (last_cycle_start_ && now < *last_cycle_start_ + cycle_period_) {
+    cycle_wait_ = *last_cycle_start_ + cycle_period_ - now;
+    return;
+  }
   runCycleLogged();
 }
 
