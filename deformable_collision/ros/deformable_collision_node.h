@@ -38,10 +38,11 @@ namespace deformable_collision {
 /// - the reader (reader_queue_, one spinner thread) runs the cloud subscriptions and the
 ///   retries of clouds waiting for tf: it converts, transforms and checks each cloud and
 ///   hands it to the cycle through handoff_. It alone touches readers_.
-/// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles and the
-///   services. It alone touches scene_, the cycle members of slots_ (index, poses, tracked
-///   indices, model, registration), taken_, markers_, the latency windows and
-///   stats_message_.
+/// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles, the
+///   services and the outputs' connect and disconnect callbacks (CountedPublisher). It
+///   alone touches scene_, the cycle members of slots_ (index, poses, tracked indices,
+///   model, registration, the deformed publisher's count), taken_, markers_, the latency
+///   windows, stats_message_ and contacts_message_.
 /// Between them: handoff_ (its own mutex), the atomics of slots_ and of the node (counters,
 /// the wake-up flag), and the drop reports (report_mutex_). tf_buffer_ is thread-safe and
 /// filled by the listener's own thread. Everything else is set in the constructor and only

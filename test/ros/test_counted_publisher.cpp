@@ -41,15 +41,6 @@ class CountedPublisherTest : public ::testing::Test {
   ros::NodeHandle client_;
 };
 
-TEST_F(CountedPublisherTest, CountsNoneWithoutSubscribers) {
-  CountedPublisher publisher;
-  publisher.advertise<std_msgs::UInt32>(handle_, "/counted/alone", 1);
-  ros::WallDuration(0.2).sleep();
-  queue_.callAvailable();
-  EXPECT_EQ(publisher.subscribers(), 0u);
-  EXPECT_FALSE(publisher.subscribed());
-}
-
 TEST_F(CountedPublisherTest, CountsSubscribersOfThisProcessAsTheyComeAndGo) {
   CountedPublisher publisher;
   publisher.advertise<std_msgs::UInt32>(handle_, "/counted/local", 1);
