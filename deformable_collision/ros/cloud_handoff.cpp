@@ -8,11 +8,13 @@ namespace deformable_collision {
 CloudHandoff::CloudHandoff(std::vector<bool> starts_cycle)
     : waiting_(starts_cycle.size()),
       is_waiting_(starts_cycle.size(), false),
+      taken_early_(starts_cycle.size(), false),
       starts_cycle_(std::move(starts_cycle)),
       objects_starting_cycles_(
           static_cast<std::size_t>(std::count(starts_cycle_.begin(), starts_cycle_.end(), true))) {
-  // Each object waits at most once: the list never grows past this.
+  // Each object is listed at most once in each: the lists never grow past this.
   waiting_objects_.reserve(starts_cycle_.size());
+  early_objects_.reserve(starts_cycle_.size());
 }
 
 void CloudHandoff::put(std::size_t object, ReadCloud& cloud) {
@@ -24,16 +26,34 @@ void CloudHandoff::put(std::size_t object, ReadCloud& cloud) {
   }
   is_waiting_[object] = true;
   waiting_objects_.push_back(object);
-  if (starts_cycle_[object]) ++waiting_starting_cycles_;
+  if (starts_cycle_[object] && !taken_early_[object]) ++fresh_starting_cycles_;
 }
 
 bool CloudHandoff::ready(bool all) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return all ? objects_starting_cycles_ > 0 && waiting_starting_cycles_ == objects_starting_cycles_
-             : waiting_starting_cycles_ > 0;
+  return all ? objects_starting_cycles_ > 0 && fresh_starting_cycles_ == objects_starting_cycles_
+             : fresh_starting_cycles_ > 0;
 }
 
-void CloudHandoff::take(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects) {
+void CloudHandoff::takeEarly(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects) {
+  objects.clear();
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::size_t still_waiting = 0;
+  for (const std::size_t object : waiting_objects_) {
+    if (taken_early_[object]) {
+      waiting_objects_[still_waiting++] = object;
+      continue;
+    }
+    std::swap(waiting_[object], taken.at(object));
+    is_waiting_[object] = false;
+    taken_early_[object] = true;
+    early_objects_.push_back(object);
+    objects.push_back(object);
+  }
+  waiting_objects_.resize(still_waiting);
+}
+
+void CloudHandoff::takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects) {
   objects.clear();
   std::lock_guard<std::mutex> lock(mutex_);
   for (const std::size_t object : waiting_objects_) {
@@ -42,7 +62,9 @@ void CloudHandoff::take(std::vector<ReadCloud>& taken, std::vector<std::size_t>&
     objects.push_back(object);
   }
   waiting_objects_.clear();
-  waiting_starting_cycles_ = 0;
+  for (const std::size_t object : early_objects_) taken_early_[object] = false;
+  early_objects_.clear();
+  fresh_starting_cycles_ = 0;
 }
 
 std::uint64_t CloudHandoff::coalesced() const {

@@ -28,6 +28,9 @@ struct ReadCloud {
 /// object's three buffers (being read, waiting, taken) have grown to its clouds nothing is
 /// allocated. A cloud not yet taken when a newer one of its object comes is replaced and
 /// counted as coalesced, so at most one cloud per object ever waits.
+///
+/// While a cycle may not start yet (rate_hz), the cycle thread takes clouds early, one per
+/// object until the cycle takes, and applies them then; the cycle itself takes the rest.
 class CloudHandoff {
  public:
   /// `starts_cycle[i]`: whether object i's clouds count for ready().
@@ -36,12 +39,17 @@ class CloudHandoff {
   /// Reader: makes `cloud` object's waiting cloud; `cloud` gets back a buffer to read the
   /// next one into (its contents are stale).
   void put(std::size_t object, ReadCloud& cloud);
-  /// Whether a cloud of an object that starts cycles waits; with `all`, one of every such
-  /// object.
+  /// Whether, since the last takeForCycle(), a cloud of an object that starts cycles came
+  /// (waiting, or taken early); with `all`, one of every such object.
   bool ready(bool all) const;
-  /// Cycle: swaps each waiting cloud into taken[object] and lists those objects in
-  /// `objects` (whose capacity is reused), in the order their clouds came.
-  void take(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
+  /// Cycle, before it may start: swaps each waiting cloud of an object that had none taken
+  /// early since the last takeForCycle() into taken[object] and lists those objects in
+  /// `objects` (whose capacity is reused), in the order their clouds came. The clouds of
+  /// the others stay waiting, for the cycle: an object faster than the cycles costs at
+  /// most two clouds' work a cycle, however fast it is.
+  void takeEarly(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
+  /// Cycle, as it starts: takeEarly() for every waiting cloud, and ready() counts anew.
+  void takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
   /// Clouds replaced before they were taken, since construction.
   std::uint64_t coalesced() const;
 
@@ -49,10 +57,13 @@ class CloudHandoff {
   mutable std::mutex mutex_;
   std::vector<ReadCloud> waiting_;
   std::vector<bool> is_waiting_;
+  std::vector<bool> taken_early_;  ///< Since the last takeForCycle().
   std::vector<std::size_t> waiting_objects_;
+  std::vector<std::size_t> early_objects_;
   const std::vector<bool> starts_cycle_;
   std::size_t objects_starting_cycles_ = 0;
-  std::size_t waiting_starting_cycles_ = 0;
+  /// Objects that start cycles with a cloud waiting or taken early: what ready() counts.
+  std::size_t fresh_starting_cycles_ = 0;
   std::uint64_t coalesced_ = 0;
 };
 

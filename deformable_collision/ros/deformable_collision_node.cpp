@@ -69,6 +69,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
       tf_listener_(tf_buffer_, node_handle),
       wake_(boost::make_shared<WakeUp>()),
       taken_(config_.objects.size()),
+      applied_(config_.objects.size()),
       cycle_period_(std::chrono::duration_cast<Clock::duration>(
           std::chrono::duration<double>(1.0 / config_.rate_hz))),
       cycle_wait_(kIdleWait),
@@ -148,13 +149,21 @@ void DeformableCollisionNode::cycleOnClouds() {
   if (models_waiting_) models_waiting_ = placeModels();
   // A model waiting for its frame is looked for at rate_hz, as the timer would.
   cycle_wait_ = models_waiting_ ? cycle_period_ : Clock::duration(kIdleWait);
-  if (!handoff_.ready(config_.cycle_on_all)) return;
-  const auto now = Clock::now();
-  if (last_cycle_start_ && now < *last_cycle_start_ + cycle_period_) {
-    cycle_wait_ = *last_cycle_start_ + cycle_period_ - now;
+  const bool ready = handoff_.ready(config_.cycle_on_all);
+  const bool too_soon = last_cycle_start_ && Clock::now() < *last_cycle_start_ + cycle_period_;
+  if (ready && !too_soon) {
+    runCycleLogged();
     return;
   }
-  runCycleLogged();
+  // While the cycle waits for rate_hz or for the other objects' clouds, the clouds read
+  // meanwhile are applied as they come: the cycle then applies only what came last, and the
+  // clouds of a burst wait for one cycle's detection, not for their fits too
+  // (docs/design.md, "The node's threads").
+  handoff_.takeEarly(taken_, taken_slots_);
+  applyTakenClouds(taken_slots_);
+  if (ready) {
+    cycle_wait_ = std::max(Clock::duration::zero(), *last_cycle_start_ + cycle_period_ - Clock::now());
+  }
 }
 
 void DeformableCollisionNode::onTimer(const ros::TimerEvent&) {
@@ -168,19 +177,33 @@ void DeformableCollisionNode::runCycleLogged() {
   } catch (const std::exception& e) {
     ROS_ERROR_THROTTLE(kThrottlePeriodS, "cycle failed: %s", e.what());
   }
+  forgetAppliedClouds();
 }
 
-void DeformableCollisionNode::applyTakenClouds() {
-  handoff_.take(taken_, taken_slots_);
-  applied_slots_.clear();
-  for (const std::size_t index : taken_slots_) {
+void DeformableCollisionNode::applyTakenClouds(const std::vector<std::size_t>& objects) {
+  for (const std::size_t index : objects) {
     ObjectSlot& slot = slots_[index];
     try {
-      if (applyCloud(slot, taken_[index])) applied_slots_.push_back(index);
+      if (!applyCloud(slot, taken_[index])) continue;
     } catch (const std::exception& e) {
       dropCloud(slot, ros::console::levels::Error, e.what());
+      continue;
     }
+    AppliedCloud& applied = applied_[index];
+    if (applied.pending) {
+      ++clouds_superseded_;
+    } else {
+      applied.pending = true;
+      applied_slots_.push_back(index);
+    }
+    applied.stamp = taken_[index].stamp;
+    applied.arrival = taken_[index].arrival;
   }
+}
+
+void DeformableCollisionNode::forgetAppliedClouds() {
+  for (const std::size_t index : applied_slots_) applied_[index].pending = false;
+  applied_slots_.clear();
 }
 
 bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
@@ -283,7 +306,8 @@ void DeformableCollisionNode::runCycle() {
   CycleTimes times;
   times.start = Clock::now();
   last_cycle_start_ = times.start;
-  applyTakenClouds();
+  handoff_.takeForCycle(taken_, taken_slots_);
+  applyTakenClouds(taken_slots_);
   std_msgs::Header header;
   header.stamp = ros::Time::now();
   header.frame_id = config_.fixed_frame;
@@ -329,7 +353,7 @@ void DeformableCollisionNode::runCycle() {
 ros::Time DeformableCollisionNode::newestTakenStamp() const {
   ros::Time newest;
   for (const std::size_t index : applied_slots_) {
-    if (slots_[index].params.object.kind == ObjectKind::kTracked) newest = std::max(newest, taken_[index].stamp);
+    if (slots_[index].params.object.kind == ObjectKind::kTracked) newest = std::max(newest, applied_[index].stamp);
   }
   return newest;
 }
@@ -347,7 +371,7 @@ std::optional<DeformableCollisionNode::Clock::time_point> DeformableCollisionNod
     const CycleTimes& times) {
   std::optional<Clock::time_point> oldest_input;
   for (const std::size_t index : applied_slots_) {
-    const ReadCloud& cloud = taken_[index];
+    const AppliedCloud& cloud = applied_[index];
     if (!oldest_input || cloud.arrival < *oldest_input) oldest_input = cloud.arrival;
     arrival_latency_.add(millisecondsBetween(cloud.arrival, times.contacts_published));
     if (!cloud.stamp.isZero()) {
@@ -415,7 +439,7 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.contacts = static_cast<std::uint32_t>(cycle.contacts);
   stats.clouds_received = clouds_received_;
   stats.clouds_rejected = clouds_rejected_;
-  stats.clouds_coalesced = handoff_.coalesced();
+  stats.clouds_coalesced = handoff_.coalesced() + clouds_superseded_;
   stats.non_finite_points = non_finite_points_;
   fillRegistrationStats(stats);
   stats_publisher_.publish(stats);

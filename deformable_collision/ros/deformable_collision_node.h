@@ -133,8 +133,11 @@ class DeformableCollisionNode {
   void handOver(std::size_t slot, ReadCloud& read);
 
   // The cycle (deformable_collision_node.cpp, node_registration.cpp).
-  /// Takes the clouds handed over since the last cycle and applies each to its object.
-  void applyTakenClouds();
+  /// Applies each of `objects`' clouds in taken_ to its object and notes it for the next
+  /// cycle's stamp and latencies.
+  void applyTakenClouds(const std::vector<std::size_t>& objects);
+  /// After a cycle, its clouds are no longer the next one's.
+  void forgetAppliedClouds();
   /// Whether the cloud changed the object (an ignored object's is left alone).
   bool applyCloud(ObjectSlot& slot, ReadCloud& cloud);
   /// The points of a tracked object's cloud, in the order of its rest shape: `cloud`
@@ -160,8 +163,8 @@ class DeformableCollisionNode {
   void fillRegistrationStats(Stats& stats) const;
   void followFrames();
   void cycleLoop();
-  /// cycle_on clouds: a cycle if a cloud starts one and rate_hz allows it; sets the wait
-  /// until the next check.
+  /// cycle_on clouds: a cycle if a cloud starts one and rate_hz allows it, else the clouds
+  /// read meanwhile applied already; sets the wait until the next check.
   void cycleOnClouds();
   void onTimer(const ros::TimerEvent& event);
   /// When the steps of one cycle ended, for ~stats.
@@ -225,7 +228,16 @@ class DeformableCollisionNode {
   // The cycle's.
   std::vector<ReadCloud> taken_;
   std::vector<std::size_t> taken_slots_;
-  std::vector<std::size_t> applied_slots_;
+  /// A cloud applied to its object since the last cycle, early or by the cycle itself.
+  struct AppliedCloud {
+    bool pending = false;  ///< Applied, its contacts not yet published.
+    ros::Time stamp;
+    Clock::time_point arrival;
+  };
+  std::vector<AppliedCloud> applied_;
+  std::vector<std::size_t> applied_slots_;  ///< Those pending, in the order applied.
+  /// Clouds applied early and then replaced by a newer one before a cycle used them.
+  std::uint64_t clouds_superseded_ = 0;
   std::optional<Clock::time_point> last_cycle_start_;
   ros::Time last_cycle_stamp_;
   bool models_waiting_ = false;

@@ -31,7 +31,7 @@ TEST(CloudHandoff, PassesTheBufferItselfNotACopy) {
   handoff.put(0, read);
   std::vector<ReadCloud> taken(1);
   std::vector<std::size_t> objects;
-  handoff.take(taken, objects);
+  handoff.takeForCycle(taken, objects);
   ASSERT_EQ(objects, std::vector<std::size_t>{0});
   EXPECT_EQ(taken[0].points.data(), data);
   EXPECT_EQ(taken[0].stamp, ros::Time(12.5));
@@ -48,12 +48,12 @@ TEST(CloudHandoff, ANewerCloudReplacesOneNotYetTaken) {
   handoff.put(1, other);
   std::vector<ReadCloud> taken(2);
   std::vector<std::size_t> objects;
-  handoff.take(taken, objects);
+  handoff.takeForCycle(taken, objects);
   EXPECT_EQ(objects, (std::vector<std::size_t>{0, 1}));
   EXPECT_EQ(taken[0].points[0].x(), 3.0);
   EXPECT_EQ(taken[1].points[0].x(), 7.0);
   EXPECT_EQ(handoff.coalesced(), 2u);
-  handoff.take(taken, objects);
+  handoff.takeForCycle(taken, objects);
   EXPECT_TRUE(objects.empty()) << "each cloud is taken once";
 }
 
@@ -72,9 +72,56 @@ TEST(CloudHandoff, ReadyWhenOneOrEveryObjectThatStartsCyclesHasACloud) {
   EXPECT_TRUE(handoff.ready(true));
   std::vector<ReadCloud> taken(3);
   std::vector<std::size_t> objects;
-  handoff.take(taken, objects);
+  handoff.takeForCycle(taken, objects);
   EXPECT_FALSE(handoff.ready(false));
   EXPECT_FALSE(CloudHandoff({false}).ready(true)) << "no object starts cycles";
+}
+
+TEST(CloudHandoff, AnObjectTakenEarlyStaysReadyUntilTheCycleTakes) {
+  CloudHandoff handoff({true, true});
+  ReadCloud read = numbered(1, 0.0);
+  std::vector<ReadCloud> taken(2);
+  std::vector<std::size_t> objects;
+  handoff.put(0, read);
+  handoff.takeEarly(taken, objects);
+  EXPECT_EQ(objects, std::vector<std::size_t>{0});
+  EXPECT_TRUE(handoff.ready(false)) << "its cloud, applied early, is still the next cycle's";
+  EXPECT_FALSE(handoff.ready(true));
+  handoff.put(1, read);
+  EXPECT_TRUE(handoff.ready(true)) << "one object's cloud taken early, the other's waiting";
+  handoff.takeForCycle(taken, objects);
+  EXPECT_EQ(objects, std::vector<std::size_t>{1});
+  EXPECT_FALSE(handoff.ready(false));
+  EXPECT_FALSE(handoff.ready(true));
+}
+
+TEST(CloudHandoff, AnObjectTakenEarlyLeavesItsNextCloudsToTheCycle) {
+  CloudHandoff handoff({true, false});
+  std::vector<ReadCloud> taken(2);
+  std::vector<std::size_t> objects;
+  ReadCloud read = numbered(4, 1.0);
+  handoff.put(0, read);
+  handoff.takeEarly(taken, objects);
+  ASSERT_EQ(objects, std::vector<std::size_t>{0});
+  EXPECT_EQ(taken[0].points[0].x(), 1.0);
+  for (double sequence : {2.0, 3.0}) {
+    read = numbered(4, sequence);
+    handoff.put(0, read);
+  }
+  read = numbered(4, 7.0);
+  handoff.put(1, read);
+  handoff.takeEarly(taken, objects);
+  EXPECT_EQ(objects, std::vector<std::size_t>{1}) << "one cloud per object before the cycle";
+  EXPECT_EQ(taken[1].points[0].x(), 7.0);
+  EXPECT_EQ(handoff.coalesced(), 1u) << "cloud 2, replaced while it waited";
+  handoff.takeForCycle(taken, objects);
+  ASSERT_EQ(objects, std::vector<std::size_t>{0});
+  EXPECT_EQ(taken[0].points[0].x(), 3.0);
+  read = numbered(4, 4.0);
+  handoff.put(0, read);
+  handoff.takeEarly(taken, objects);
+  EXPECT_EQ(objects, std::vector<std::size_t>{0}) << "after the cycle, early again";
+  EXPECT_EQ(taken[0].points[0].x(), 4.0);
 }
 
 TEST(CloudHandoff, ThreeBuffersCirculateOnceGrown) {
@@ -88,14 +135,15 @@ TEST(CloudHandoff, ThreeBuffersCirculateOnceGrown) {
     read.points.resize(100);  // a reader refilling its buffer: no allocation once grown
     if (round >= 3) buffers.insert(read.points.data());
     handoff.put(0, read);
-    handoff.take(taken, objects);
+    handoff.takeForCycle(taken, objects);
   }
   EXPECT_LE(buffers.size(), 3u);
 }
 
-// The reader thread converts clouds and hands them over while the cycle thread takes them
-// and runs the scene's cycle on them, as the node does; under ThreadSanitizer (the thread
-// build of test/sanitized) any unsynchronised access between the two is reported.
+// The reader thread converts clouds and hands them over while the cycle thread takes them,
+// early and for its cycles, and runs the scene's cycle on them, as the node does; under
+// ThreadSanitizer (the thread build of test/sanitized) any unsynchronised access between the
+// two is reported.
 TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   constexpr int kClouds = 300;
   const Points shape = sampleBox(200, Eigen::Vector3d(0.05, 0.05, 0.05), 7);
@@ -129,23 +177,36 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   std::vector<std::size_t> objects;
   objects.reserve(1);
   int cycles = 0;
+  int superseded = 0;  // applied early, then replaced before a cycle used it
+  bool pending = false;
   double last_stamp = 0.0;
-  for (;;) {
-    const bool done = !reading;  // read before the take: then the last cloud is in it
-    handoff.take(taken, objects);
-    if (!objects.empty()) {
-      EXPECT_GT(taken[0].stamp.toSec(), last_stamp) << "clouds come newest last";
-      last_stamp = taken[0].stamp.toSec();
-      scene.observe(object, taken[0].points);
-      scene.cycle();
-      ++cycles;
+  const auto apply = [&] {
+    if (objects.empty()) return;
+    EXPECT_GT(taken[0].stamp.toSec(), last_stamp) << "clouds come newest last";
+    last_stamp = taken[0].stamp.toSec();
+    scene.observe(object, taken[0].points);
+    superseded += pending;
+    pending = true;
+  };
+  for (int round = 0;; ++round) {
+    const bool done = !reading;  // read before the takes: then the last cloud is in them
+    handoff.takeEarly(taken, objects);
+    apply();
+    if (round % 2 == 1) {
+      handoff.takeForCycle(taken, objects);
+      apply();
+      if (pending) {
+        scene.cycle();
+        ++cycles;
+        pending = false;
+      }
     }
-    if (done && objects.empty()) break;
+    if (done && !pending && !handoff.ready(false)) break;
     std::this_thread::yield();
   }
   reader.join();
   EXPECT_EQ(last_stamp, kClouds) << "the newest cloud is always taken";
-  EXPECT_EQ(cycles + handoff.coalesced(), static_cast<std::uint64_t>(kClouds));
+  EXPECT_EQ(cycles + superseded + handoff.coalesced(), static_cast<std::uint64_t>(kClouds));
   EXPECT_NEAR(scene.body(object).positions()[0].x(), shape[0].x() + 1e-4 * kClouds, 1e-9);
 }
 
