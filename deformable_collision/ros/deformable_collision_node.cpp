@@ -313,7 +313,7 @@ void DeformableCollisionNode::runCycle() {
   header.frame_id = config_.fixed_frame;
   if (config_.cycle_on == CycleOn::kClouds) {
     // The outputs of a cycle that clouds started carry those clouds' time.
-    const ros::Time stamp = newestTakenStamp();
+    const ros::Time stamp = newestAppliedStamp();
     if (!stamp.isZero()) {
       if (config_.dt_from_stamps) stepToStamp(stamp);
       header.stamp = stamp;
@@ -350,7 +350,7 @@ void DeformableCollisionNode::runCycle() {
   publishStats(header, times, oldest_input, points);
 }
 
-ros::Time DeformableCollisionNode::newestTakenStamp() const {
+ros::Time DeformableCollisionNode::newestAppliedStamp() const {
   ros::Time newest;
   for (const std::size_t index : applied_slots_) {
     if (slots_[index].params.object.kind == ObjectKind::kTracked) newest = std::max(newest, applied_[index].stamp);

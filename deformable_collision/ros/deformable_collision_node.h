@@ -181,8 +181,9 @@ class DeformableCollisionNode {
   void runCycle();
   /// dt_s: stamp: the step from the last cycle's stamp to `stamp`.
   void stepToStamp(const ros::Time& stamp);
-  /// The newest stamp of the clouds taken this cycle; zero if none.
-  ros::Time newestTakenStamp() const;
+  /// The newest stamp of the tracked clouds applied for this cycle (early or by it); zero if
+  /// none.
+  ros::Time newestAppliedStamp() const;
   /// The arrival of the oldest cloud taken this cycle, and each taken cloud's latencies.
   std::optional<Clock::time_point> recordLatencies(const CycleTimes& times);
   /// Publishes the subscribed ~deformed/<object> clouds; returns the points of all objects.
