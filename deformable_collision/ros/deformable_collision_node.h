@@ -184,7 +184,7 @@ class DeformableCollisionNode {
   /// The newest stamp of the tracked clouds applied for this cycle (early or by it); zero if
   /// none.
   ros::Time newestAppliedStamp() const;
-  /// The arrival of the oldest cloud taken this cycle, and each taken cloud's latencies.
+  /// The arrival of the oldest cloud applied for this cycle, and each such cloud's latencies.
   std::optional<Clock::time_point> recordLatencies(const CycleTimes& times);
   /// Publishes the subscribed ~deformed/<object> clouds; returns the points of all objects.
   std::size_t publishDeformed(const std_msgs::Header& header);
