@@ -9,6 +9,8 @@ CloudHandoff::CloudHandoff(std::vector<bool> starts_cycle)
     : waiting_(starts_cycle.size()),
       is_waiting_(starts_cycle.size(), false),
       taken_early_(starts_cycle.size(), false),
+      replaced_since_cycle_(starts_cycle.size(), false),
+      faster_than_cycles_(starts_cycle.size(), false),
       starts_cycle_(std::move(starts_cycle)),
       objects_starting_cycles_(
           static_cast<std::size_t>(std::count(starts_cycle_.begin(), starts_cycle_.end(), true))) {
@@ -22,6 +24,7 @@ void CloudHandoff::put(std::size_t object, ReadCloud& cloud) {
   std::swap(waiting_.at(object), cloud);
   if (is_waiting_[object]) {
     ++coalesced_;
+    replaced_since_cycle_[object] = true;
     return;
   }
   is_waiting_[object] = true;
@@ -40,7 +43,7 @@ void CloudHandoff::takeEarly(std::vector<ReadCloud>& taken, std::vector<std::siz
   std::lock_guard<std::mutex> lock(mutex_);
   std::size_t still_waiting = 0;
   for (const std::size_t object : waiting_objects_) {
-    if (taken_early_[object]) {
+    if (taken_early_[object] || faster_than_cycles_[object]) {
       waiting_objects_[still_waiting++] = object;
       continue;
     }
@@ -59,6 +62,9 @@ void CloudHandoff::takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::
   for (const std::size_t object : waiting_objects_) {
     std::swap(waiting_[object], taken.at(object));
     is_waiting_[object] = false;
+    // Two clouds or more since the last cycle: one taken early, or one replaced waiting.
+    faster_than_cycles_[object] = taken_early_[object] || replaced_since_cycle_[object];
+    replaced_since_cycle_[object] = false;
     objects.push_back(object);
   }
   waiting_objects_.clear();

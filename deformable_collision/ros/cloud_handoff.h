@@ -31,6 +31,8 @@ struct ReadCloud {
 ///
 /// While a cycle may not start yet (rate_hz), the cycle thread takes clouds early, one per
 /// object until the cycle takes, and applies them then; the cycle itself takes the rest.
+/// An object whose clouds came faster than the cycles (two or more for the last cycle) is
+/// not taken early: its cloud would be replaced before the cycle, and its early work lost.
 class CloudHandoff {
  public:
   /// `starts_cycle[i]`: whether object i's clouds count for ready().
@@ -45,8 +47,9 @@ class CloudHandoff {
   /// Cycle, before it may start: swaps each waiting cloud of an object that had none taken
   /// early since the last takeForCycle() into taken[object] and lists those objects in
   /// `objects` (whose capacity is reused), in the order their clouds came. The clouds of
-  /// the others stay waiting, for the cycle: an object faster than the cycles costs at
-  /// most two clouds' work a cycle, however fast it is.
+  /// the others stay waiting, for the cycle, and so do those of an object that had two
+  /// clouds or more for the last cycle, until a cycle has one of it: an object faster than
+  /// the cycles costs one cloud's work a cycle, and two in the cycle it became so.
   void takeEarly(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
   /// Cycle, as it starts: takeEarly() for every waiting cloud, and ready() counts anew.
   void takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
@@ -58,6 +61,9 @@ class CloudHandoff {
   std::vector<ReadCloud> waiting_;
   std::vector<bool> is_waiting_;
   std::vector<bool> taken_early_;  ///< Since the last takeForCycle().
+  std::vector<bool> replaced_since_cycle_;  ///< A waiting cloud replaced since then.
+  /// Two clouds or more for the last cycle that took one of the object's.
+  std::vector<bool> faster_than_cycles_;
   std::vector<std::size_t> waiting_objects_;
   std::vector<std::size_t> early_objects_;
   const std::vector<bool> starts_cycle_;

@@ -117,11 +117,40 @@ TEST(CloudHandoff, AnObjectTakenEarlyLeavesItsNextCloudsToTheCycle) {
   handoff.takeForCycle(taken, objects);
   ASSERT_EQ(objects, std::vector<std::size_t>{0});
   EXPECT_EQ(taken[0].points[0].x(), 3.0);
-  read = numbered(4, 4.0);
-  handoff.put(0, read);
+}
+
+TEST(CloudHandoff, AnObjectFasterThanTheCyclesIsTakenEarlyAgainAfterACycleWithOneOfItsClouds) {
+  CloudHandoff handoff({true});
+  std::vector<ReadCloud> taken(1);
+  std::vector<std::size_t> objects;
+  const auto put = [&](double sequence) {
+    ReadCloud read = numbered(4, sequence);
+    handoff.put(0, read);
+  };
+  put(1.0);
   handoff.takeEarly(taken, objects);
-  EXPECT_EQ(objects, std::vector<std::size_t>{0}) << "after the cycle, early again";
-  EXPECT_EQ(taken[0].points[0].x(), 4.0);
+  ASSERT_EQ(objects, std::vector<std::size_t>{0});
+  put(2.0);
+  handoff.takeForCycle(taken, objects);
+  ASSERT_EQ(objects, std::vector<std::size_t>{0}) << "cloud 2 replaces the early cloud 1";
+  put(3.0);
+  handoff.takeEarly(taken, objects);
+  EXPECT_TRUE(objects.empty()) << "two clouds for the last cycle: cloud 3 waits for the cycle";
+  handoff.takeForCycle(taken, objects);
+  ASSERT_EQ(objects, std::vector<std::size_t>{0});
+  EXPECT_EQ(taken[0].points[0].x(), 3.0);
+  put(4.0);
+  handoff.takeEarly(taken, objects);
+  EXPECT_EQ(objects, std::vector<std::size_t>{0}) << "one cloud for the last cycle: early again";
+  handoff.takeForCycle(taken, objects);
+  put(5.0);
+  put(6.0);
+  handoff.takeForCycle(taken, objects);
+  ASSERT_EQ(objects, std::vector<std::size_t>{0});
+  EXPECT_EQ(taken[0].points[0].x(), 6.0);
+  put(7.0);
+  handoff.takeEarly(taken, objects);
+  EXPECT_TRUE(objects.empty()) << "cloud 5, replaced while it waited, made two for that cycle";
 }
 
 TEST(CloudHandoff, ThreeBuffersCirculateOnceGrown) {
