@@ -10,7 +10,7 @@ CloudHandoff::CloudHandoff(std::vector<bool> starts_cycle)
       is_waiting_(starts_cycle.size(), false),
       taken_early_(starts_cycle.size(), false),
       replaced_since_cycle_(starts_cycle.size(), false),
-      faster_than_cycles_(starts_cycle.size(), false),
+      cycles_faster_(starts_cycle.size(), 0),
       starts_cycle_(std::move(starts_cycle)),
       objects_starting_cycles_(
           static_cast<std::size_t>(std::count(starts_cycle_.begin(), starts_cycle_.end(), true))) {
@@ -43,7 +43,7 @@ void CloudHandoff::takeEarly(std::vector<ReadCloud>& taken, std::vector<std::siz
   std::lock_guard<std::mutex> lock(mutex_);
   std::size_t still_waiting = 0;
   for (const std::size_t object : waiting_objects_) {
-    if (taken_early_[object] || faster_than_cycles_[object]) {
+    if (taken_early_[object] || cycles_faster_[object] >= kCyclesFasterToWait) {
       waiting_objects_[still_waiting++] = object;
       continue;
     }
@@ -59,11 +59,16 @@ void CloudHandoff::takeEarly(std::vector<ReadCloud>& taken, std::vector<std::siz
 void CloudHandoff::takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects) {
   objects.clear();
   std::lock_guard<std::mutex> lock(mutex_);
+  for (const std::size_t object : early_objects_) {
+    // Taken early and not again: one cloud for this cycle.
+    if (!is_waiting_[object]) cycles_faster_[object] = 0;
+  }
   for (const std::size_t object : waiting_objects_) {
     std::swap(waiting_[object], taken.at(object));
     is_waiting_[object] = false;
-    // Two clouds or more since the last cycle: one taken early, or one replaced waiting.
-    faster_than_cycles_[object] = taken_early_[object] || replaced_since_cycle_[object];
+    // Two clouds or more for this cycle: one taken early, or one replaced while it waited.
+    const bool faster = taken_early_[object] || replaced_since_cycle_[object];
+    cycles_faster_[object] = faster ? std::min(cycles_faster_[object] + 1, kCyclesFasterToWait) : 0;
     replaced_since_cycle_[object] = false;
     objects.push_back(object);
   }

@@ -31,8 +31,9 @@ struct ReadCloud {
 ///
 /// While a cycle may not start yet (rate_hz), the cycle thread takes clouds early, one per
 /// object until the cycle takes, and applies them then; the cycle itself takes the rest.
-/// An object whose clouds came faster than the cycles (two or more for the last cycle) is
-/// not taken early: its cloud would be replaced before the cycle, and its early work lost.
+/// An object whose clouds came faster than the cycles (two or more for each of the last
+/// two cycles) is not taken early: its cloud would be replaced before the cycle, and its
+/// early work lost. One such cycle alone (a cycle that came late) does not count.
 class CloudHandoff {
  public:
   /// `starts_cycle[i]`: whether object i's clouds count for ready().
@@ -48,8 +49,9 @@ class CloudHandoff {
   /// early since the last takeForCycle() into taken[object] and lists those objects in
   /// `objects` (whose capacity is reused), in the order their clouds came. The clouds of
   /// the others stay waiting, for the cycle, and so do those of an object that had two
-  /// clouds or more for the last cycle, until a cycle has one of it: an object faster than
-  /// the cycles costs one cloud's work a cycle, and two in the cycle it became so.
+  /// clouds or more for each of the last two cycles, until a cycle has one of it: an object
+  /// faster than the cycles costs one cloud's work a cycle, and two in the two cycles in
+  /// which it became so.
   void takeEarly(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
   /// Cycle, as it starts: takeEarly() for every waiting cloud, and ready() counts anew.
   void takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
@@ -62,8 +64,9 @@ class CloudHandoff {
   std::vector<bool> is_waiting_;
   std::vector<bool> taken_early_;  ///< Since the last takeForCycle().
   std::vector<bool> replaced_since_cycle_;  ///< A waiting cloud replaced since then.
-  /// Two clouds or more for the last cycle that took one of the object's.
-  std::vector<bool> faster_than_cycles_;
+  /// Cycles in a row that had two clouds or more of the object, up to kCyclesFasterToWait.
+  static constexpr int kCyclesFasterToWait = 2;
+  std::vector<int> cycles_faster_;
   std::vector<std::size_t> waiting_objects_;
   std::vector<std::size_t> early_objects_;
   const std::vector<bool> starts_cycle_;

@@ -119,7 +119,7 @@ TEST(CloudHandoff, AnObjectTakenEarlyLeavesItsNextCloudsToTheCycle) {
   EXPECT_EQ(taken[0].points[0].x(), 3.0);
 }
 
-TEST(CloudHandoff, AnObjectFasterThanTheCyclesIsTakenEarlyAgainAfterACycleWithOneOfItsClouds) {
+TEST(CloudHandoff, AnObjectFasterThanTheCyclesTwiceInARowWaitsForACycleWithOneOfItsClouds) {
   CloudHandoff handoff({true});
   std::vector<ReadCloud> taken(1);
   std::vector<std::size_t> objects;
@@ -127,30 +127,36 @@ TEST(CloudHandoff, AnObjectFasterThanTheCyclesIsTakenEarlyAgainAfterACycleWithOn
     ReadCloud read = numbered(4, sequence);
     handoff.put(0, read);
   };
+  const auto early = [&] {
+    handoff.takeEarly(taken, objects);
+    return objects.size();
+  };
   put(1.0);
-  handoff.takeEarly(taken, objects);
-  ASSERT_EQ(objects, std::vector<std::size_t>{0});
+  ASSERT_EQ(early(), 1u);
   put(2.0);
   handoff.takeForCycle(taken, objects);
   ASSERT_EQ(objects, std::vector<std::size_t>{0}) << "cloud 2 replaces the early cloud 1";
   put(3.0);
-  handoff.takeEarly(taken, objects);
-  EXPECT_TRUE(objects.empty()) << "two clouds for the last cycle: cloud 3 waits for the cycle";
-  handoff.takeForCycle(taken, objects);
-  ASSERT_EQ(objects, std::vector<std::size_t>{0});
-  EXPECT_EQ(taken[0].points[0].x(), 3.0);
+  EXPECT_EQ(early(), 1u) << "one cycle with two clouds (a late cycle, say) does not count";
   put(4.0);
-  handoff.takeEarly(taken, objects);
-  EXPECT_EQ(objects, std::vector<std::size_t>{0}) << "one cloud for the last cycle: early again";
   handoff.takeForCycle(taken, objects);
   put(5.0);
-  put(6.0);
+  EXPECT_EQ(early(), 0u) << "two cycles in a row with two clouds: cloud 5 waits for the cycle";
   handoff.takeForCycle(taken, objects);
   ASSERT_EQ(objects, std::vector<std::size_t>{0});
-  EXPECT_EQ(taken[0].points[0].x(), 6.0);
-  put(7.0);
-  handoff.takeEarly(taken, objects);
-  EXPECT_TRUE(objects.empty()) << "cloud 5, replaced while it waited, made two for that cycle";
+  EXPECT_EQ(taken[0].points[0].x(), 5.0);
+  put(6.0);
+  EXPECT_EQ(early(), 1u) << "a cycle with one cloud of it: early again";
+  handoff.takeForCycle(taken, objects);
+  for (double sequence : {7.0, 9.0}) {
+    put(sequence);
+    put(sequence + 1.0);
+    handoff.takeForCycle(taken, objects);
+    ASSERT_EQ(objects, std::vector<std::size_t>{0});
+    EXPECT_EQ(taken[0].points[0].x(), sequence + 1.0);
+  }
+  put(11.0);
+  EXPECT_EQ(early(), 0u) << "clouds replaced while they waited count as well";
 }
 
 TEST(CloudHandoff, ThreeBuffersCirculateOnceGrown) {
