@@ -49,11 +49,12 @@ class CloudHandoff {
   /// early since the last takeForCycle() into taken[object] and lists those objects in
   /// `objects` (whose capacity is reused), in the order their clouds came. The clouds of
   /// the others stay waiting, for the cycle, and so do those of an object that had two
-  /// clouds or more for each of the last two cycles, until a cycle has one of it: an object
-  /// faster than the cycles costs one cloud's work a cycle, and two in the two cycles in
-  /// which it became so.
+  /// clouds or more for each of the last two cycles, until a cycle has one cloud of it: an
+  /// object faster than the cycles costs one cloud's work a cycle, and two in the two cycles
+  /// in which it became so.
   void takeEarly(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
-  /// Cycle, as it starts: takeEarly() for every waiting cloud, and ready() counts anew.
+  /// Cycle, as it starts: swaps every waiting cloud into taken[object] (listing those
+  /// objects as takeEarly() does), and ready() counts anew.
   void takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects);
   /// Clouds replaced before they were taken, since construction.
   std::uint64_t coalesced() const;
