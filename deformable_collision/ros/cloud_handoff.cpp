@@ -59,10 +59,6 @@ void CloudHandoff::takeEarly(std::vector<ReadCloud>& taken, std::vector<std::siz
 void CloudHandoff::takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::size_t>& objects) {
   objects.clear();
   std::lock_guard<std::mutex> lock(mutex_);
-  for (const std::size_t object : early_objects_) {
-    // Taken early and not again: one cloud for this cycle.
-    if (!is_waiting_[object]) cycles_faster_[object] = 0;
-  }
   for (const std::size_t object : waiting_objects_) {
     std::swap(waiting_[object], taken.at(object));
     is_waiting_[object] = false;
@@ -70,10 +66,15 @@ void CloudHandoff::takeForCycle(std::vector<ReadCloud>& taken, std::vector<std::
     const bool faster = taken_early_[object] || replaced_since_cycle_[object];
     cycles_faster_[object] = faster ? std::min(cycles_faster_[object] + 1, kCyclesFasterToWait) : 0;
     replaced_since_cycle_[object] = false;
+    taken_early_[object] = false;
     objects.push_back(object);
   }
   waiting_objects_.clear();
-  for (const std::size_t object : early_objects_) taken_early_[object] = false;
+  for (const std::size_t object : early_objects_) {
+    // Still marked: taken early and not again, one cloud for this cycle.
+    if (taken_early_[object]) cycles_faster_[object] = 0;
+    taken_early_[object] = false;
+  }
   early_objects_.clear();
   fresh_starting_cycles_ = 0;
 }

@@ -131,15 +131,17 @@ TEST(CloudHandoff, AnObjectFasterThanTheCyclesTwiceInARowWaitsForACycleWithOneOf
     handoff.takeEarly(taken, objects);
     return objects.size();
   };
-  put(1.0);
-  ASSERT_EQ(early(), 1u);
-  put(2.0);
-  handoff.takeForCycle(taken, objects);
+  // A cycle with two clouds of the object, the first offered early: how many were taken early.
+  const auto two_clouds = [&](double first) {
+    put(first);
+    const std::size_t taken_early = early();
+    put(first + 1.0);
+    handoff.takeForCycle(taken, objects);
+    return taken_early;
+  };
+  ASSERT_EQ(two_clouds(1.0), 1u);
   ASSERT_EQ(objects, std::vector<std::size_t>{0}) << "cloud 2 replaces the early cloud 1";
-  put(3.0);
-  EXPECT_EQ(early(), 1u) << "one cycle with two clouds (a late cycle, say) does not count";
-  put(4.0);
-  handoff.takeForCycle(taken, objects);
+  EXPECT_EQ(two_clouds(3.0), 1u) << "one cycle with two clouds (a late cycle, say) does not count";
   put(5.0);
   EXPECT_EQ(early(), 0u) << "two cycles in a row with two clouds: cloud 5 waits for the cycle";
   handoff.takeForCycle(taken, objects);
@@ -148,14 +150,23 @@ TEST(CloudHandoff, AnObjectFasterThanTheCyclesTwiceInARowWaitsForACycleWithOneOf
   put(6.0);
   EXPECT_EQ(early(), 1u) << "a cycle with one cloud of it: early again";
   handoff.takeForCycle(taken, objects);
-  for (double sequence : {7.0, 9.0}) {
+  // One fast cycle, one with its early cloud alone, one fast again: never two in a row.
+  ASSERT_EQ(two_clouds(7.0), 1u);
+  put(9.0);
+  ASSERT_EQ(early(), 1u);
+  handoff.takeForCycle(taken, objects);
+  ASSERT_EQ(two_clouds(10.0), 1u);
+  put(12.0);
+  EXPECT_EQ(early(), 1u) << "a cycle with its early cloud alone ends a run of fast cycles";
+  handoff.takeForCycle(taken, objects);
+  for (double sequence : {13.0, 15.0}) {
     put(sequence);
     put(sequence + 1.0);
     handoff.takeForCycle(taken, objects);
     ASSERT_EQ(objects, std::vector<std::size_t>{0});
     EXPECT_EQ(taken[0].points[0].x(), sequence + 1.0);
   }
-  put(11.0);
+  put(17.0);
   EXPECT_EQ(early(), 0u) << "clouds replaced while they waited count as well";
 }
 
