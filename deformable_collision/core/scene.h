@@ -69,14 +69,17 @@ struct SceneContact {
 struct CycleStats {
   double shape_matching_ms = 0.0;
   double detection_ms = 0.0;
+  /// Detection done ahead of this cycle (detectAhead()), not in its time: the contacts of the
+  /// pairs that did not change since are taken from it. The counts below include its work.
+  double detection_ahead_ms = 0.0;
   double response_ms = 0.0;
   int level = 0;  ///< The level the contacts were found at.
   bool level_auto = false;       ///< The level was picked to fit cycle_budget_ms.
   double cycle_budget_ms = 0.0;  ///< The budget it was picked for; 0 when the level is fixed.
   std::size_t objects_moved = 0;         ///< Stepped, posed or registered this cycle.
-  std::size_t object_pairs_tested = 0;   ///< Root sphere tests after the sweep.
-  /// Of those, pairs neither of which changed since the last cycle: their contacts kept, not
-  /// queried again.
+  std::size_t object_pairs_tested = 0;   ///< Root sphere tests after the cycle's sweep.
+  /// Of those, pairs neither of which changed since the last detection (the last cycle's,
+  /// or one ahead of this cycle): their contacts kept, not queried again.
   std::size_t object_pairs_reused = 0;
   std::size_t spheres_updated = 0;
   std::size_t node_pairs_tested = 0;
@@ -178,6 +181,14 @@ class Scene {
   /// tests those pairs or fewer, on spheres that the cycle may have updated already.
   const LevelCosts& detectionCosts() const { return detection_costs_; }
 
+  /// Detects the contacts of the current state at level(), ahead of the next cycle, which
+  /// then queries only the object pairs that change after this call: a node that applies
+  /// clouds while it waits for its next cycle detects them meanwhile. Pairs with a dynamic
+  /// object are left to the cycle, whose step moves it. The time and the counts go into the
+  /// next cycle's stats (detection_ahead_ms); the cycle budget counts that time as the
+  /// cycle's. contacts() holds the contacts found until the cycle.
+  void detectAhead();
+
   /// Contacts at `level` on the current state, for objects a and b (std::nullopt: any).
   /// The running level and the contacts of the last cycle are left alone. Like cycle(), it
   /// never reports two static objects touching: the broad phase never pairs them, since
@@ -242,7 +253,10 @@ class Scene {
   /// The cycle's detection into contacts_ and contact_runs_: a pair of objects neither of
   /// which got a revision since the last cycle's detection at the same level keeps its
   /// contacts, the others are queried.
-  void detectCycleContacts(int level);
+  /// Spheres updated since each object's tree last restarted, over all objects.
+  std::size_t spheresUpdated() const;
+  /// `ahead`: detectAhead()'s pass, which leaves the pairs with a dynamic object out.
+  void detectCycleContacts(int level, bool ahead);
   /// Appends the last cycle's contacts of the pair (first, second) to contacts_; `cursor`
   /// walks previous_runs_, which is in the order of the candidate pairs.
   void reusePreviousContacts(std::uint32_t first, std::uint32_t second, std::size_t& cursor);
@@ -363,8 +377,17 @@ class Scene {
   /// The level of the last cycle's detection; none before the first, or after one that threw.
   std::optional<int> previous_level_;
   std::uint64_t revisions_ = 0;  ///< The last revision given to an object.
-  /// revisions_ at the last cycle's detection: objects numbered up to it kept their points.
+  /// revisions_ at the last detection (a cycle's, or one ahead of a cycle): objects numbered
+  /// up to it kept their points since.
   std::uint64_t revisions_detected_ = 0;
+  /// What detectAhead() did since the last cycle, for that cycle's stats.
+  struct DetectionAhead {
+    double ms = 0.0;
+    std::size_t spheres_updated = 0;
+    std::size_t node_pairs_tested = 0;
+    std::size_t point_tests = 0;
+  };
+  DetectionAhead detection_ahead_;
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   /// The velocity exchanges of this response's pairs, in their order, for the later passes.
   std::vector<VelocityExchange> velocity_exchanges_;

@@ -160,12 +160,13 @@ void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second,
   if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
 }
 
-// Two objects whose points did not change since the last cycle's detection have the same
-// contacts at the same level: the same candidate pair (their boxes come from the same
-// spheres) and the same query on the same spheres. Only tracked, kinematic and static
-// objects keep their points between cycles: a tracked pile between its clouds, a camera's
-// object on the floor.
-void Scene::detectCycleContacts(int level) {
+// Two objects whose points did not change since the last detection have the same contacts
+// at the same level: the same candidate pair (their boxes come from the same spheres) and the
+// same query on the same spheres. Only tracked, kinematic and static objects keep their
+// points between detections: a tracked pile between its clouds, a camera's object on the
+// floor, and what a detection ahead of the cycle saw. Every dynamic object moves in each
+// cycle's step, so a detection ahead leaves its pairs to the cycle.
+void Scene::detectCycleContacts(int level, bool ahead) {
   contacts_.swap(previous_contacts_);
   contact_runs_.swap(previous_runs_);
   contacts_.clear();
@@ -179,9 +180,10 @@ void Scene::detectCycleContacts(int level) {
   };
   std::size_t cursor = 0;
   for (const auto& [a, b] : candidate_pairs_) {
-    ++stats_.object_pairs_tested;
+    if (ahead && (objects_[a]->dynamic() || objects_[b]->dynamic())) continue;
+    if (!ahead) ++stats_.object_pairs_tested;
     if (reusable && unchanged(a) && unchanged(b)) {
-      ++stats_.object_pairs_reused;
+      if (!ahead) ++stats_.object_pairs_reused;
       reusePreviousContacts(a, b, cursor);
     } else {
       queryPair(level, a, b, contacts_, &contact_runs_);

@@ -1010,7 +1010,7 @@ TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
     if (chance(2)) return Eigen::Vector3d::Zero().eval();
     return Eigen::Vector3d(millimetres(), millimetres(), millimetres());
   };
-  std::size_t reused_pairs = 0, kept_contacts = 0;
+  std::size_t reused_pairs = 0, kept_contacts = 0, detections_ahead = 0;
   std::vector<SceneContact> queried;
   for (int cycle = 0; cycle < 60; ++cycle) {
     for (std::size_t t = 1; t <= 4; ++t) {
@@ -1019,6 +1019,11 @@ TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
       const Eigen::Vector3d shift = offset();
       for (auto& p : observed) p += shift;
       scene->observe(t, observed);
+      // A node detects ahead the clouds it applied while its cycle waits; more may follow.
+      if (chance(3)) {
+        scene->detectAhead();
+        ++detections_ahead;
+      }
     }
     if (chance(4)) {
       scene->setPose(5, Eigen::Isometry3d(Eigen::Translation3d(
@@ -1039,6 +1044,7 @@ TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
       const std::size_t t = 1 + rng() % 4;
       scene->resetRestShape(t, tracked_rests[t - 1]);
     }
+    if (chance(6)) scene->detectAhead();
     scene->cycle();
     const std::vector<SceneContact> kept = betweenFixedObjects(*scene, scene->contacts());
     scene->contactsAt(scene->stats().level, std::nullopt, std::nullopt, queried);
@@ -1052,9 +1058,10 @@ TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
     reused_pairs += scene->stats().object_pairs_reused;
     kept_contacts += kept.size();
   }
-  // The case tested something: pairs were kept, and fixed objects touched.
+  // The case tested something: pairs were kept, fixed objects touched, detections ran ahead.
   EXPECT_GT(reused_pairs, 20u);
   EXPECT_GT(kept_contacts, 0u);
+  EXPECT_GT(detections_ahead, 20u);
 }
 
 INSTANTIATE_TEST_SUITE_P(
@@ -1085,6 +1092,59 @@ TEST(Scene, PairsOfUnchangedObjectsAreNotQueriedAgain) {
   EXPECT_EQ(scene->stats().object_pairs_reused, 0u);
   scene->cycle();
   EXPECT_EQ(scene->stats().object_pairs_reused, settled.object_pairs_reused);
+}
+
+TEST(Scene, ADetectionAheadLeavesTheCycleThePairsChangedAfterIt) {
+  // Two copies of one scene, one detecting ahead of its cycles and one not.
+  std::vector<Points> tracked_rests;
+  auto ahead = trackedRowOnFloor(-1, tracked_rests);
+  auto in_cycle = trackedRowOnFloor(-1, tracked_rests);
+  for (Scene* scene : {ahead.get(), in_cycle.get()}) {
+    scene->cycle();
+    scene->cycle();
+  }
+  const std::size_t settled_reused = in_cycle->stats().object_pairs_reused;
+  ASSERT_EQ(settled_reused, in_cycle->stats().object_pairs_tested);
+  const auto expect_same_contacts = [&](const char* step) {
+    const CycleStats& x = ahead->stats();
+    const CycleStats& y = in_cycle->stats();
+    EXPECT_EQ(x.object_pairs_tested, y.object_pairs_tested) << step;
+    EXPECT_GT(x.detection_ahead_ms, 0.0) << step;
+    EXPECT_EQ(y.detection_ahead_ms, 0.0) << step;
+    ASSERT_EQ(ahead->contacts().size(), in_cycle->contacts().size()) << step;
+    for (std::size_t k = 0; k < ahead->contacts().size(); ++k) {
+      EXPECT_TRUE(sameContact(ahead->contacts()[k], in_cycle->contacts()[k]))
+          << step << ", contact " << k;
+    }
+  };
+
+  // Object 2, observed and detected ahead: the cycle queries none of its 3 pairs (the floor,
+  // objects 1 and 3) again, and reports the work done ahead as its own.
+  ahead->observe(2, tracked_rests[1]);
+  ahead->detectAhead();
+  ahead->cycle();
+  in_cycle->observe(2, tracked_rests[1]);
+  in_cycle->cycle();
+  EXPECT_EQ(ahead->stats().object_pairs_reused, settled_reused);
+  EXPECT_EQ(in_cycle->stats().object_pairs_reused + 3, settled_reused);
+  EXPECT_GT(in_cycle->stats().node_pairs_tested, 0u);
+  EXPECT_EQ(ahead->stats().node_pairs_tested, in_cycle->stats().node_pairs_tested);
+  EXPECT_EQ(ahead->stats().point_tests, in_cycle->stats().point_tests);
+  EXPECT_EQ(ahead->stats().spheres_updated, in_cycle->stats().spheres_updated);
+  expect_same_contacts("object 2 detected ahead");
+
+  // Object 1, observed after the detection ahead: the cycle queries its 2 pairs (the floor
+  // and object 2) itself, the pair with object 2 for the second time.
+  ahead->observe(2, tracked_rests[1]);
+  ahead->detectAhead();
+  ahead->observe(1, tracked_rests[0]);
+  ahead->cycle();
+  in_cycle->observe(2, tracked_rests[1]);
+  in_cycle->observe(1, tracked_rests[0]);
+  in_cycle->cycle();
+  EXPECT_EQ(ahead->stats().object_pairs_reused + 2, settled_reused);
+  EXPECT_GT(ahead->stats().node_pairs_tested, in_cycle->stats().node_pairs_tested);
+  expect_same_contacts("object 1 observed after");
 }
 
 // The response defers the whole-object moves of objects it does not dent to the next step:
