@@ -20,6 +20,9 @@ constexpr double kLargestStepS = 0.1;
 /// The cycle thread's wait when nothing is due; a wake-up (a cloud, a service call, the
 /// timer, the destructor) ends it sooner.
 constexpr std::chrono::milliseconds kIdleWait(100);
+/// Clouds applied early are detected ahead of their cycle once none came for this long: the
+/// clouds of a burst come a few tens of microseconds apart as they are read.
+constexpr std::chrono::microseconds kQuietBeforeDetectingAhead(500);
 
 NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   XmlRpc::XmlRpcValue params;
@@ -161,8 +164,25 @@ void DeformableCollisionNode::cycleOnClouds() {
   // (docs/design.md, "The node's threads").
   handoff_.takeEarly(taken_, taken_slots_);
   applyTakenClouds(taken_slots_);
-  if (ready) {
-    cycle_wait_ = std::max(Clock::duration::zero(), *last_cycle_start_ + cycle_period_ - Clock::now());
+  Clock::time_point now = Clock::now();
+  if (!taken_slots_.empty()) last_early_application_ = now;
+  if (last_early_application_ && now - *last_early_application_ >= kQuietBeforeDetectingAhead) {
+    detectAheadLogged();
+    now = Clock::now();
+  }
+  if (ready) cycle_wait_ = std::max(Clock::duration::zero(), *last_cycle_start_ + cycle_period_ - now);
+  if (last_early_application_) {
+    cycle_wait_ = std::min(cycle_wait_, *last_early_application_ + kQuietBeforeDetectingAhead - now);
+  }
+}
+
+void DeformableCollisionNode::detectAheadLogged() {
+  // Detected or not, these clouds wait for the cycle now.
+  last_early_application_.reset();
+  try {
+    scene_.detectAhead();
+  } catch (const std::exception& e) {
+    ROS_ERROR_THROTTLE(kThrottlePeriodS, "detection ahead of the cycle failed: %s", e.what());
   }
 }
 
@@ -306,6 +326,7 @@ void DeformableCollisionNode::runCycle() {
   CycleTimes times;
   times.start = Clock::now();
   last_cycle_start_ = times.start;
+  last_early_application_.reset();
   handoff_.takeForCycle(taken_, taken_slots_);
   applyTakenClouds(taken_slots_);
   std_msgs::Header header;
@@ -422,6 +443,7 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.cycle_budget_ms = cycle.cycle_budget_ms;
   stats.shape_matching_ms = cycle.shape_matching_ms;
   stats.detection_ms = cycle.detection_ms;
+  stats.detection_ahead_ms = cycle.detection_ahead_ms;
   stats.response_ms = cycle.response_ms;
   stats.publish_ms = millisecondsBetween(times.cycled, times.published);
   stats.cycle_ms = cycle_ms;

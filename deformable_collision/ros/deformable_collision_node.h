@@ -179,6 +179,8 @@ class DeformableCollisionNode {
   /// runCycle, an exception logged instead of ending the thread.
   void runCycleLogged();
   void runCycle();
+  /// Scene::detectAhead for the clouds applied early, an exception logged.
+  void detectAheadLogged();
   /// dt_s: stamp: the step from the last cycle's stamp to `stamp`.
   void stepToStamp(const ros::Time& stamp);
   /// The newest stamp of the tracked clouds applied for this cycle (early or by it); zero if
@@ -240,6 +242,9 @@ class DeformableCollisionNode {
   /// Clouds applied early and then replaced by a newer one before a cycle used them.
   std::uint64_t clouds_superseded_ = 0;
   std::optional<Clock::time_point> last_cycle_start_;
+  /// The last cloud applied early and not yet detected ahead of its cycle; unset when there
+  /// is none.
+  std::optional<Clock::time_point> last_early_application_;
   ros::Time last_cycle_stamp_;
   bool models_waiting_ = false;
   const Clock::duration cycle_period_;  ///< 1 / rate_hz
