@@ -250,12 +250,12 @@ class Scene {
   /// Appends the contacts of one candidate pair, in this order, and its run if any.
   void queryPair(int level, std::uint32_t first, std::uint32_t second,
                  std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
-  /// The cycle's detection into contacts_ and contact_runs_: a pair of objects neither of
-  /// which got a revision since the last cycle's detection at the same level keeps its
-  /// contacts, the others are queried.
   /// Spheres updated since each object's tree last restarted, over all objects.
   std::size_t spheresUpdated() const;
-  /// `ahead`: detectAhead()'s pass, which leaves the pairs with a dynamic object out.
+  /// The cycle's detection into contacts_ and contact_runs_: a pair of objects neither of
+  /// which got a revision since the last detection at the same level keeps its contacts, the
+  /// others are queried. `ahead`: detectAhead()'s, which leaves the pairs with a dynamic
+  /// object out and counts no object pairs in stats_.
   void detectCycleContacts(int level, bool ahead);
   /// Appends the last cycle's contacts of the pair (first, second) to contacts_; `cursor`
   /// walks previous_runs_, which is in the order of the candidate pairs.

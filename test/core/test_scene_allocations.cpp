@@ -85,6 +85,27 @@ TEST(Scene, SteadyStateCyclesAllocateNothing) {
   EXPECT_GT(gripper.scene->stats().contacts, 0u) << "the jaws must hold the fruit";
 }
 
+// A node that applies clouds while its cycle waits detects them then: the detection ahead
+// and the cycle that keeps its contacts allocate nothing either.
+TEST(Scene, SteadyCyclesDetectedAheadAllocateNothing) {
+  DrivenGripper gripper;
+  while (gripper.cycle < 300) gripper.step();
+  Scene& scene = *gripper.scene;
+  const auto step_detected_ahead = [&] {
+    driveDemoScene(DemoScene::kGripper, scene, gripper.cycle++ * scene.config().dt_s);
+    scene.detectAhead();
+    scene.cycle();
+  };
+  for (int warm = 0; warm < 20; ++warm) step_detected_ahead();
+  allocations = 0;
+  counting = true;
+  for (int steady = 0; steady < 20; ++steady) step_detected_ahead();
+  counting = false;
+  EXPECT_EQ(allocations.load(), 0);
+  EXPECT_GT(scene.stats().detection_ahead_ms, 0.0);
+  EXPECT_GT(scene.stats().contacts, 0u) << "the jaws must hold the fruit";
+}
+
 // In budget mode each cycle also takes its cost into the level's estimate and picks the next
 // level: steady cycles still allocate nothing. (Changing levels is not a steady state: the
 // contacts of the squeezed fruit grow at some levels, and their scratch with them.)
