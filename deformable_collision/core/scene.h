@@ -143,8 +143,9 @@ class Scene {
                                    const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
 
   /// One cycle; its contacts are contacts() and its figures stats(). A pair of objects
-  /// neither of which changed since the last cycle, at the same level, keeps that cycle's
-  /// contacts without a query (stats().object_pairs_reused).
+  /// neither of which changed since the last detection (the last cycle's, or detectAhead()'s),
+  /// at the same level, keeps that detection's contacts without a query
+  /// (stats().object_pairs_reused).
   void cycle();
 
   /// Changes the level of the next cycles (no other cost); -1 is the finest, as in
@@ -374,7 +375,7 @@ class Scene {
   // contacts_ and contact_runs_ each cycle, so neither is reallocated in steady state.
   std::vector<SceneContact> previous_contacts_;
   std::vector<ContactRun> previous_runs_;
-  /// The level of the last cycle's detection; none before the first, or after one that threw.
+  /// The level of the last detection; none before the first, or after one that threw.
   std::optional<int> previous_level_;
   std::uint64_t revisions_ = 0;  ///< The last revision given to an object.
   /// revisions_ at the last detection (a cycle's, or one ahead of a cycle): objects numbered
