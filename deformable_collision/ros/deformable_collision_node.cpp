@@ -20,8 +20,8 @@ constexpr double kLargestStepS = 0.1;
 /// The cycle thread's wait when nothing is due; a wake-up (a cloud, a service call, the
 /// timer, the destructor) ends it sooner.
 constexpr std::chrono::milliseconds kIdleWait(100);
-/// Clouds applied early are detected ahead of their cycle once none came for this long: the
-/// clouds of a burst come a few tens of microseconds apart as they are read.
+/// Clouds applied early are detected ahead of their cycle once none came for this long: a
+/// pass for every cloud would pay the sweep and the copy of the kept contacts each time.
 constexpr std::chrono::microseconds kQuietBeforeDetectingAhead(500);
 
 NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
