@@ -6,10 +6,12 @@
 // and by the peers of s1_methods.h (FCL, Bullet, PCL). Every method finds the point pairs
 // closer than the contact distance; the run fails if any finds other pairs than ours.
 // Usage: bench_collision [points_in_all=160000] [steps=20] [results_dir] [contact_distance_m=0.005]
+// Prints the table, then what our query tested per step and how full ball a's leaves are.
 // With results_dir (not empty), appends to results_dir/s1.csv and results_dir/s1_pairs.csv,
 // each row with its contact distance. The default 5 mm is a near miss (a few point pairs per
 // step at 160k points); 0.05 is the dense case, thousands of pairs touching, where every
 // method's time goes into testing points of leaves in reach against each other.
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -46,7 +48,29 @@ class SphereTreeMethod : public db::S1Method {
     a_.beginCycle(update_);
     b_.beginCycle(update_);
     query_.collide(a_, b_, kLeaves, contact_distance_m_, contacts_, counters_);
+    leaf_contacts_ += contacts_.size();
     return a_.counters().spheres_updated + b_.counters().spheres_updated;
+  }
+
+  /// What the queries of `steps` steps tested, per step, and the leaves they tested: where
+  /// the time goes, against the point pairs found.
+  void printWork(int steps) const {
+    std::uint32_t fewest = ~0u, most = 0;
+    const auto& starts = a_.leafSlotStarts();
+    for (std::size_t k = 0; k + 1 < starts.size(); ++k) {
+      fewest = std::min(fewest, starts[k + 1] - starts[k]);
+      most = std::max(most, starts[k + 1] - starts[k]);
+    }
+    std::printf(
+        "\n%s's query per step: %.0f node pairs, %.0f leaf pairs tested (%.1f point tests "
+        "each), %.0f of them closer than the contact distance; ball a's %zu leaves hold %u to "
+        "%u points (%.1f on average)\n",
+        name_, double(counters_.node_pairs_tested) / steps,
+        double(counters_.leaf_pairs_tested) / steps,
+        double(counters_.point_tests) /
+            double(std::max<std::size_t>(1, counters_.leaf_pairs_tested)),
+        double(leaf_contacts_) / steps, starts.size() - 1, fewest, most,
+        double(starts.back()) / double(starts.size() - 1));
   }
 
   /// The point pairs of the contacts' leaves; a point shared by overlapping clusters sits
@@ -78,6 +102,7 @@ class SphereTreeMethod : public db::S1Method {
   double contact_distance_m_;
   dc::HierarchyQuery query_;
   dc::QueryCounters counters_;
+  std::size_t leaf_contacts_ = 0;
   std::vector<dc::SphereContact> contacts_;
 };
 
@@ -163,6 +188,8 @@ void report(const std::vector<std::unique_ptr<db::S1Method>>& methods,
     std::printf("| %s | %.3f | %.4f | %.0f |\n", methods[m]->name(), totals[m].ms / steps,
                 totals[m].ms / steps / full_refit_ms, double(totals[m].updated) / steps);
   }
+  // makeMethods puts ours first.
+  static_cast<const SphereTreeMethod&>(*methods.front()).printWork(steps);
   if (results_dir.empty()) return;
   db::CsvAppender csv(
       results_dir + "/s1.csv",
