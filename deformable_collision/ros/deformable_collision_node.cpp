@@ -329,6 +329,7 @@ void DeformableCollisionNode::runCycle() {
   last_early_application_.reset();
   handoff_.takeForCycle(taken_, taken_slots_);
   applyTakenClouds(taken_slots_);
+  times.clouds_applied = Clock::now();
   std_msgs::Header header;
   header.stamp = ros::Time::now();
   header.frame_id = config_.fixed_frame;
@@ -434,13 +435,20 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   // Cycles and overruns count whether or not anyone listens: a later subscriber sees all.
   ++stats.cycles;
   const double cycle_ms = millisecondsBetween(times.start, times.published);
-  if (cycle_ms > 1000.0 / config_.rate_hz) ++stats.overruns;
+  const double input_ms = millisecondsBetween(times.start, times.clouds_applied);
+  const double period_ms = 1000.0 / config_.rate_hz;
+  if (cycle_ms > period_ms) {
+    ++stats.overruns;
+    // The input made the cycle late if the cycle would have kept to the period without it.
+    if (cycle_ms - input_ms <= period_ms) ++stats.overruns_from_input;
+  }
   if (!stats_publisher_.subscribed()) return;
   stats.header = header;
   stats.level = static_cast<std::uint8_t>(cycle.level);
   stats.max_level = static_cast<std::uint8_t>(scene_.maxLevel());
   stats.level_auto = cycle.level_auto;
   stats.cycle_budget_ms = cycle.cycle_budget_ms;
+  stats.input_ms = input_ms;
   stats.shape_matching_ms = cycle.shape_matching_ms;
   stats.detection_ms = cycle.detection_ms;
   stats.detection_ahead_ms = cycle.detection_ahead_ms;

@@ -170,6 +170,7 @@ class DeformableCollisionNode {
   /// When the steps of one cycle ended, for ~stats.
   struct CycleTimes {
     Clock::time_point start;
+    Clock::time_point clouds_applied;
     Clock::time_point cycled;
     Clock::time_point contacts_published;
     ros::Time contacts_published_ros;

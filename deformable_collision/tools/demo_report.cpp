@@ -69,7 +69,8 @@ struct LatencyPeriods {
 /// What the node's ~stats said over the watch: the last message and each figure's summary.
 struct StatsRecord {
   deformable_collision::Stats last;
-  Summary shape_matching, detection, detection_ahead, response, publish, cycle, latency, contacts;
+  Summary input, shape_matching, detection, detection_ahead, response, publish, cycle, latency,
+      contacts;
   std::vector<double> latencies_ms;  ///< Per cycle, of its oldest cloud.
   LatencyPeriods latency_periods;
   std::size_t cycles = 0;
@@ -83,6 +84,7 @@ struct StatsRecord {
     ++cycles;
     last = stats;
     if ((ros::WallTime::now() - first_cycle).toSec() < warmup_s) return;
+    input.add(stats.input_ms);
     shape_matching.add(stats.shape_matching_ms);
     detection.add(stats.detection_ms);
     detection_ahead.add(stats.detection_ahead_ms);
@@ -247,19 +249,21 @@ void printReport(StatsRecord& record, double duration_s) {
   std::printf(") ===\n");
   std::printf("objects %u, points %u, level of detail %u of %u (leaves)\n", last.objects,
               last.points, last.level, last.max_level);
-  std::printf("per cycle, mean / max ms: shape matching %.3f / %.3f, detection %.3f / %.3f "
-              "(and ahead of the cycle %.3f / %.3f), response %.3f / %.3f, publish %.3f / %.3f, "
-              "whole %.3f / %.3f\n",
-              record.shape_matching.mean(), record.shape_matching.max, record.detection.mean(),
-              record.detection.max, record.detection_ahead.mean(), record.detection_ahead.max,
-              record.response.mean(), record.response.max,
-              record.publish.mean(), record.publish.max, record.cycle.mean(), record.cycle.max);
+  std::printf("per cycle, mean / max ms: input %.3f / %.3f, shape matching %.3f / %.3f, "
+              "detection %.3f / %.3f (and ahead of the cycle %.3f / %.3f), response %.3f / %.3f, "
+              "publish %.3f / %.3f, whole %.3f / %.3f\n",
+              record.input.mean(), record.input.max, record.shape_matching.mean(),
+              record.shape_matching.max, record.detection.mean(), record.detection.max,
+              record.detection_ahead.mean(), record.detection_ahead.max, record.response.mean(),
+              record.response.max, record.publish.mean(), record.publish.max, record.cycle.mean(),
+              record.cycle.max);
   std::printf("contacts per cycle: mean %.1f, max %.0f, last %u\n", record.contacts.mean(),
               record.contacts.max, last.contacts);
   printLatencies(record);
-  std::printf("overruns %lu of %lu cycles; clouds received %lu, rejected %lu, coalesced %lu; "
-              "non-finite points %lu\n",
+  std::printf("overruns %lu of %lu cycles (%lu from their input); clouds received %lu, "
+              "rejected %lu, coalesced %lu; non-finite points %lu\n",
               static_cast<unsigned long>(last.overruns), static_cast<unsigned long>(last.cycles),
+              static_cast<unsigned long>(last.overruns_from_input),
               static_cast<unsigned long>(last.clouds_received),
               static_cast<unsigned long>(last.clouds_rejected),
               static_cast<unsigned long>(last.clouds_coalesced),

@@ -146,6 +146,17 @@ TEST_F(CycleOnCloudsTest, EveryCloudStartsExactlyOneCycleCarryingItsStamp) {
   ASSERT_NE(after, nullptr);
   EXPECT_EQ(after->cycles - before->cycles, stamps.size());
   EXPECT_EQ(after->clouds_coalesced, before->clouds_coalesced);
+  EXPECT_LE(after->overruns_from_input, after->overruns);
+  // Taking the clouds is the cycle's first part, apart from the scene's stages and the
+  // publication.
+  for (const ros::Time& stamp : stamps) {
+    const Stats::ConstPtr stats = waitForStats(stamp);
+    ASSERT_NE(stats, nullptr);
+    EXPECT_GT(stats->input_ms, 0.0);
+    EXPECT_LE(stats->input_ms + stats->shape_matching_ms + stats->detection_ms +
+                  stats->response_ms + stats->publish_ms,
+              stats->cycle_ms + 1e-9);
+  }
 }
 
 TEST_F(CycleOnCloudsTest, ABurstFasterThanTheRateIsCoalesced) {
