@@ -69,6 +69,8 @@ struct LatencyPeriods {
 /// What the node's ~stats said over the watch: the last message and each figure's summary.
 struct StatsRecord {
   deformable_collision::Stats last;
+  /// The last message of the warm-up: the node's counts since it are the figures'.
+  deformable_collision::Stats before_figures;
   Summary input, shape_matching, detection, detection_ahead, response, publish, cycle, latency,
       contacts;
   std::vector<double> latencies_ms;  ///< Per cycle, of its oldest cloud.
@@ -83,7 +85,10 @@ struct StatsRecord {
     if (cycles == 0) first_cycle = ros::WallTime::now();
     ++cycles;
     last = stats;
-    if ((ros::WallTime::now() - first_cycle).toSec() < warmup_s) return;
+    if ((ros::WallTime::now() - first_cycle).toSec() < warmup_s) {
+      before_figures = stats;
+      return;
+    }
     input.add(stats.input_ms);
     shape_matching.add(stats.shape_matching_ms);
     detection.add(stats.detection_ms);
@@ -260,10 +265,17 @@ void printReport(StatsRecord& record, double duration_s) {
   std::printf("contacts per cycle: mean %.1f, max %.0f, last %u\n", record.contacts.mean(),
               record.contacts.max, last.contacts);
   printLatencies(record);
-  std::printf("overruns %lu of %lu cycles (%lu from their input); clouds received %lu, "
-              "rejected %lu, coalesced %lu; non-finite points %lu\n",
+  std::printf("overruns %lu of %lu cycles (%lu from their input)",
               static_cast<unsigned long>(last.overruns), static_cast<unsigned long>(last.cycles),
-              static_cast<unsigned long>(last.overruns_from_input),
+              static_cast<unsigned long>(last.overruns_from_input));
+  if (record.warmup_s > 0.0) {
+    const deformable_collision::Stats& before = record.before_figures;
+    std::printf(", after the warm-up %lu of %lu (%lu)",
+                static_cast<unsigned long>(last.overruns - before.overruns),
+                static_cast<unsigned long>(last.cycles - before.cycles),
+                static_cast<unsigned long>(last.overruns_from_input - before.overruns_from_input));
+  }
+  std::printf("; clouds received %lu, rejected %lu, coalesced %lu; non-finite points %lu\n",
               static_cast<unsigned long>(last.clouds_received),
               static_cast<unsigned long>(last.clouds_rejected),
               static_cast<unsigned long>(last.clouds_coalesced),
