@@ -434,13 +434,10 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   Stats& stats = stats_message_;
   // Cycles and overruns count whether or not anyone listens: a later subscriber sees all.
   ++stats.cycles;
-  const double cycle_ms = millisecondsBetween(times.start, times.published);
-  const double input_ms = millisecondsBetween(times.start, times.clouds_applied);
-  const double period_ms = 1000.0 / config_.rate_hz;
-  if (cycle_ms > period_ms) {
+  if (times.published - times.start > cycle_period_) {
     ++stats.overruns;
-    // The input made the cycle late if the cycle would have kept to the period without it.
-    if (cycle_ms - input_ms <= period_ms) ++stats.overruns_from_input;
+    // The input made the cycle late if the rest of the cycle kept to the period.
+    if (times.published - times.clouds_applied <= cycle_period_) ++stats.overruns_from_input;
   }
   if (!stats_publisher_.subscribed()) return;
   stats.header = header;
@@ -448,13 +445,13 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   stats.max_level = static_cast<std::uint8_t>(scene_.maxLevel());
   stats.level_auto = cycle.level_auto;
   stats.cycle_budget_ms = cycle.cycle_budget_ms;
-  stats.input_ms = input_ms;
+  stats.input_ms = millisecondsBetween(times.start, times.clouds_applied);
   stats.shape_matching_ms = cycle.shape_matching_ms;
   stats.detection_ms = cycle.detection_ms;
   stats.detection_ahead_ms = cycle.detection_ahead_ms;
   stats.response_ms = cycle.response_ms;
   stats.publish_ms = millisecondsBetween(times.cycled, times.published);
-  stats.cycle_ms = cycle_ms;
+  stats.cycle_ms = millisecondsBetween(times.start, times.published);
   stats.input_latency_ms =
       oldest_input ? millisecondsBetween(*oldest_input, times.contacts_published) : 0.0;
   fillLatencyStats(stats);
