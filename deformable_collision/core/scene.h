@@ -294,6 +294,16 @@ class Scene {
     double share_a;          ///< a's share of the change (shock propagation).
     bool sticks;             ///< Static friction held the pair in position.
   };
+  /// A dynamic object's move for one of its pairs with a fixed object, kept until every
+  /// such pair is resolved (fixed_pair_moves_).
+  struct FixedPairMove {
+    std::uint32_t object;
+    std::uint32_t serial;    ///< Order of resolution, for a stable grouping by object.
+    Eigen::Vector3d normal;  ///< The pair's normal, towards the dynamic object.
+    Eigen::Vector3d move;
+  };
+  /// Moves each dynamic object by its pairs with fixed objects taken together.
+  void moveByFixedPartners();
   /// Passes over the pairs' velocities after the first (velocity_exchanges_).
   void repeatVelocityExchanges();
   /// Stops a pair's approach (or, where it sticks, its sliding) along the exchange's normal,
@@ -392,6 +402,7 @@ class Scene {
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   /// The velocity exchanges of this response's pairs, in their order, for the later passes.
   std::vector<VelocityExchange> velocity_exchanges_;
+  std::vector<FixedPairMove> fixed_pair_moves_;
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;

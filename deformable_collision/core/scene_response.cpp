@@ -135,13 +135,23 @@ void Scene::respond() {
     const std::uint32_t depth_y = nearer_support(contact_runs_[y]);
     return depth_x != depth_y ? depth_x < depth_y : x < y;
   });
+  // The pairs with a fixed object come first (their support depth is 0); their moves are
+  // made together before the pairs between dynamic objects (moveByFixedPartners).
   velocity_exchanges_.clear();
+  fixed_pair_moves_.clear();
+  bool fixed_pairs_moved = false;
   for (const std::uint32_t r : resolve_order_) {
     const ContactRun& run = contact_runs_[r];
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
-    if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
+    if (!a.dynamic() && !b.dynamic()) continue;
+    if (a.dynamic() && b.dynamic() && !fixed_pairs_moved) {
+      moveByFixedPartners();
+      fixed_pairs_moved = true;
+    }
+    resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
   }
+  if (!fixed_pairs_moved) moveByFixedPartners();
   repeatVelocityExchanges();
   stopApproachToFixedPartners();
   for (const ContactRun& run : contact_runs_) {
@@ -155,6 +165,52 @@ void Scene::respond() {
   }
   // Queries between cycles see the state after the response.
   refreshStaleTrees();
+}
+
+// An object between fixed ones, such as a fruit in a gripper's closed jaws, is pushed from
+// opposite sides. Resolved one after the other, the later pair took the object clear of its
+// own partner whatever the earlier one had moved it, and so deep into that one: the squeezed
+// fruit sat 2.5 cm towards the jaw resolved first, and at coarse levels swung by 3 to 4 cm.
+// So each of these pairs is resolved on the object as the dynamic pairs left it (none: they
+// come later), and their moves are combined here. Along the pairs' normals one after the
+// other, each adding only what the moves before left short of its own, as the pairs would,
+// once in each order and averaged: pushes from one side take the largest, from two sides
+// at right angles both, and opposed pushes meet halfway. Across the normals (what static
+// friction takes back) their mean.
+void Scene::moveByFixedPartners() {
+  std::sort(fixed_pair_moves_.begin(), fixed_pair_moves_.end(),
+            [](const FixedPairMove& x, const FixedPairMove& y) {
+              return x.object != y.object ? x.object < y.object : x.serial < y.serial;
+            });
+  const auto add_shortfall = [](Eigen::Vector3d& along, const FixedPairMove& pair) {
+    const double short_of = (pair.move - along).dot(pair.normal);
+    if (short_of > 0.0) along += short_of * pair.normal;
+  };
+  for (auto begin = fixed_pair_moves_.begin(); begin != fixed_pair_moves_.end();) {
+    auto end = begin + 1;
+    while (end != fixed_pair_moves_.end() && end->object == begin->object) ++end;
+    Object& object = *objects_[begin->object];
+    if (end - begin == 1) {
+      object.translation += begin->move;
+      begin = end;
+      continue;
+    }
+    Eigen::Vector3d forward = Eigen::Vector3d::Zero();
+    Eigen::Vector3d backward = Eigen::Vector3d::Zero();
+    Eigen::Vector3d across = Eigen::Vector3d::Zero();
+    int across_count = 0;
+    for (auto pair = begin; pair != end; ++pair) {
+      add_shortfall(forward, *pair);
+      const Eigen::Vector3d tangential = pair->move - pair->move.dot(pair->normal) * pair->normal;
+      if (tangential.squaredNorm() == 0.0) continue;
+      across += tangential;
+      ++across_count;
+    }
+    for (auto pair = end; pair != begin;) add_shortfall(backward, *--pair);
+    object.translation += 0.5 * (forward + backward);
+    if (across_count > 0) object.translation += across / across_count;
+    begin = end;
+  }
 }
 
 // One pass over the pairs hands a push down to objects whose own supports it has already
@@ -357,8 +413,8 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
   const FixedSurface surface = fixedSurface(pair, a_fixed ? c.node_a : c.node_b);
   const std::uint32_t moving_node = a_fixed ? c.node_b : c.node_a;
   const SphereNode& node = moving.tree.node(moving_node);
-  // Pairs resolved before this one may have moved the object already.
-  double lowest = moving.translation.dot(surface.away);
+  // The object has not moved in this response yet: the pairs with fixed objects come first,
+  // and their moves wait for moveByFixedPartners.
   // The node's sphere bounds its points along the plane's normal: where even its lowest
   // point leaves no depth, no point does, and the points are not read (a coarse node holds
   // hundreds, and many of a pile's coarse contacts with a floor or a wall are such). The
@@ -366,9 +422,9 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
   const Sphere& bound = moving.tree.sphere(moving_node);
   const Eigen::Vector3d from_plane = bound.center - surface.plane_point;
   const double margin = 1e-12 * (from_plane.norm() + bound.radius + std::abs(surface.reach) +
-                                 config_.contact_distance_m + std::abs(lowest));
+                                 config_.contact_distance_m);
   if (surface.reach + 0.5 * config_.contact_distance_m -
-          (lowest + from_plane.dot(surface.away) - bound.radius - margin) <=
+          (from_plane.dot(surface.away) - bound.radius - margin) <=
       0.0) {
     return false;
   }
@@ -378,8 +434,7 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
     deepest = std::min(deepest, (positions[moving.tree.pointIndices()[s]] - surface.plane_point)
                                     .dot(surface.away));
   }
-  lowest += deepest;
-  const double depth = surface.reach + 0.5 * config_.contact_distance_m - lowest;
+  const double depth = surface.reach + 0.5 * config_.contact_distance_m - deepest;
   if (depth <= 0.0) return false;
   push.normal = a_fixed ? Eigen::Vector3d(-surface.away) : surface.away;
   push.depth_a = a_fixed ? 0.0 : depth;
@@ -440,8 +495,8 @@ void Scene::clearPassedPoints(ResolvingPair& pair) {
   for (const Eigen::Vector3d& point : moving.body.positions()) {
     if (touched.inLine(point)) lowest = std::min(lowest, point.dot(away));
   }
-  const double depth = touched.level + 0.5 * config_.contact_distance_m - lowest -
-                       moving.translation.dot(away);
+  // As in pushFromFixedPlane, the object has not moved in this response yet.
+  const double depth = touched.level + 0.5 * config_.contact_distance_m - lowest;
   double deepest_push = 0.0;
   for (const ContactPush& push : pushes_) deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
   // Points past the contacts' reach are cleared; those within it only brought back within
@@ -615,6 +670,14 @@ void Scene::exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& norma
   const bool sticks = holdStaticFriction(pair, normal, share_a);
   velocity_exchanges_.push_back({pair.index_a, pair.index_b, normal, share_a, sticks});
   exchangeVelocity(velocity_exchanges_.back());
+  if (pair.one_side_fixed) {
+    const bool a_moves = a.dynamic();
+    fixed_pair_moves_.push_back({a_moves ? pair.index_a : pair.index_b,
+                                 static_cast<std::uint32_t>(fixed_pair_moves_.size()),
+                                 a_moves ? normal : Eigen::Vector3d(-normal),
+                                 a_moves ? pair.move_a : pair.move_b});
+    return;
+  }
   if (a.dynamic()) a.translation += pair.move_a;
   if (b.dynamic()) b.translation += pair.move_b;
 }
