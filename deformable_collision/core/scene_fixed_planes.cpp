@@ -97,6 +97,42 @@ double reachAcrossGaps(Iterator first, Iterator last, double start, double sign,
   return reach;
 }
 
+Eigen::Vector3d restCenter(const ShapeMatchingBody& body, const SphereNode& node) {
+  return node.cluster < 0 ? node.rest_center
+                          : Eigen::Vector3d(node.rest_center +
+                                            body.cluster(node.cluster).rest_center_of_mass);
+}
+
+/// Clears `planar` for the nodes that are slices of a thicker part of the object: its
+/// points continue past both of the node's sides along its normal, each by more than half
+/// `gap_m`, through no gap wider than `gap_m`. A split along the axis in which a thick floor
+/// or block is not much longer than in the others cuts it into such slices (a third of a
+/// cube, of a few points across, spreads a tenth as much across as along), and their
+/// planes, at right angles to the object's surface, would push what rests on it sideways.
+/// The half gap keeps the surface layers: a fitted normal tilted by a thousandth puts the
+/// same layer's points a few tenths of a millimetre past the node's side across a wide
+/// column.
+void clearSlices(const ShapeMatchingBody& body, const SphereTree& tree,
+                 const std::vector<Eigen::Vector3d>& own_normal, double gap_m,
+                 std::vector<std::uint8_t>& planar) {
+  std::vector<double> offsets;
+  for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
+    if (!planar[n]) continue;
+    const SphereNode& node = tree.node(n);
+    const Eigen::Vector3d center = restCenter(body, node);
+    const NodeReach own = reachOfNode(body, tree, node, center, own_normal[n]);
+    columnOffsets(body, tree, tree.node(0), center, own_normal[n], own.across + 0.5 * gap_m,
+                  offsets);
+    const double past = 0.5 * gap_m;
+    const bool continues_along =
+        reachAcrossGaps(offsets.begin(), offsets.end(), own.along, 1.0, gap_m) > own.along + past;
+    const bool continues_against =
+        reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against, -1.0, gap_m) >
+        own.against + past;
+    if (continues_along && continues_against) planar[n] = 0;
+  }
+}
+
 }  // namespace
 
 void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree, double gap_m) {
@@ -105,6 +141,7 @@ void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree,
   std::vector<Eigen::Vector3d> own_normal(count);
   std::vector<std::uint8_t> planar(count, 0);
   fitOwnPlanes(body, tree, own_normal, planar);
+  clearSlices(body, tree, own_normal, gap_m, planar);
   normals.resize(count);
   extent_along.resize(count);
   extent_against.resize(count);
@@ -114,10 +151,7 @@ void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree,
     while (!planar[source] && source != 0) source = parent[source];
     normals[n] = own_normal[source];
     const SphereNode& node = tree.node(n);
-    const Eigen::Vector3d center =
-        node.cluster < 0 ? node.rest_center
-                         : Eigen::Vector3d(node.rest_center +
-                                           body.cluster(node.cluster).rest_center_of_mass);
+    const Eigen::Vector3d center = restCenter(body, node);
     // The sphere's centre need not lie midway between the layers of a slab (a few points
     // of the top layer may fix the sphere), so each side is measured on its own. A column
     // half a gap wider than the node's points still meets its neighbours in a lattice.
