@@ -100,6 +100,47 @@ __attribute__((target("avx512f"))) double gatherLeafAvx512(
 DEFORMABLE_COLLISION_END_WIDE_KERNELS
 #endif
 
+/// The child counts, level by level, under a cluster's branch of `points` points: every
+/// node of a level splits into that many equal parts, so the branch ends in as many leaves
+/// as the counts' product, all on one level, each within one point of the others (where
+/// it has at least as many points as leaves: with leaf_size below branching it may not). Halving
+/// alone ends in the next power of two above points / leaf_size leaves, which leaves them
+/// half full for a cluster of just over a power of two times leaf_size points, and a query
+/// to the leaves pays per leaf pair. The counts are `branching` or `branching + 1`, with
+/// the least product that keeps leaves at most `leaf_size` points; the wider levels come
+/// first, so that the levels above the leaves, which make the query's buckets, split in
+/// `branching`.
+std::vector<std::uint32_t> levelChildCounts(std::uint32_t points, std::uint32_t leaf_size,
+                                            std::uint32_t branching) {
+  const std::uint64_t narrow = branching;
+  const std::uint64_t wide = narrow + 1;
+  const std::uint64_t least_leaves = (std::uint64_t{points} + leaf_size - 1) / leaf_size;
+  std::uint64_t best_leaves = 0;
+  int best_depth = 0;
+  int best_wide_levels = 0;
+  // Of `depth` levels, `wide_levels` split in branching + 1: narrow^(depth - wide_levels) *
+  // wide^wide_levels leaves, computed by trading one narrow factor for a wide one at a time.
+  std::uint64_t all_narrow = 1;
+  for (int depth = 1; all_narrow < least_leaves; ++depth) {
+    all_narrow *= narrow;
+    std::uint64_t leaves = all_narrow;
+    for (int wide_levels = 0; wide_levels <= depth; ++wide_levels) {
+      if (leaves >= least_leaves) {
+        if (best_leaves == 0 || leaves < best_leaves) {
+          best_leaves = leaves;
+          best_depth = depth;
+          best_wide_levels = wide_levels;
+        }
+        break;
+      }
+      if (wide_levels < depth) leaves = leaves / narrow * wide;
+    }
+  }
+  std::vector<std::uint32_t> counts(static_cast<std::size_t>(best_depth), branching);
+  std::fill_n(counts.begin(), best_wide_levels, branching + 1);
+  return counts;
+}
+
 }  // namespace
 
 SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& config)
@@ -148,14 +189,23 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
 void SphereTree::build(const SphereTreeConfig& config) {
   gatherClusterPoints();
   const std::uint32_t first_branch = addRootAndBranches();
+  const int branch_level = nodes_[first_branch].level;
+  std::vector<std::vector<std::uint32_t>> cluster_child_counts;
+  for (std::size_t k = 0; k < body_->clusterCount(); ++k) {
+    cluster_child_counts.push_back(levelChildCounts(nodes_[first_branch + k].point_count,
+                                                    static_cast<std::uint32_t>(config.leaf_size),
+                                                    static_cast<std::uint32_t>(config.branching)));
+  }
   // Breadth first: children go to the end of nodes_, so walking nodes_ in order visits
   // each node after its parent and splits every node added on the way.
   for (std::uint32_t index = first_branch; index < nodes_.size(); ++index) {
     const SphereNode& node = nodes_[index];
     max_level_ = std::max<int>(max_level_, node.level);
-    if (node.point_count <= static_cast<std::uint32_t>(config.leaf_size)) continue;
+    const auto& child_counts = cluster_child_counts[static_cast<std::size_t>(node.cluster)];
+    const auto depth = static_cast<std::size_t>(node.level - branch_level);
+    if (depth >= child_counts.size() || node.point_count < 2) continue;
     sortAlongLongestAxis(node);
-    addChildren(index, static_cast<std::uint32_t>(config.branching));
+    addChildren(index, std::min(child_counts[depth], node.point_count));
   }
   for (std::uint32_t i = 0; i < nodes_.size(); ++i) computeRestData(i);
 }
@@ -222,10 +272,9 @@ void SphereTree::sortAlongLongestAxis(const SphereNode& node) {
   std::copy(slots.begin(), slots.end(), point_slots_.begin() + begin);
 }
 
-void SphereTree::addChildren(std::uint32_t index, std::uint32_t branching) {
+void SphereTree::addChildren(std::uint32_t index, std::uint32_t children) {
   // A copy: adding the children may move nodes_.
   const SphereNode parent = nodes_[index];
-  const auto children = std::min<std::uint32_t>(branching, parent.point_count);
   nodes_[index].first_child = static_cast<std::uint32_t>(nodes_.size());
   nodes_[index].child_count = children;
   for (std::uint32_t c = 0; c < children; ++c) {

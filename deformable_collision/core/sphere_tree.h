@@ -10,7 +10,9 @@
 namespace deformable_collision {
 
 struct SphereTreeConfig {
-  int branching = 2;  ///< Children of an internal node, >= 2.
+  /// Children of an internal node, >= 2; the levels nearest the root may split in
+  /// branching + 1, where that ends the tree in fewer, fuller leaves.
+  int branching = 2;
   int leaf_size = 8;  ///< Largest number of points in a leaf, >= 1.
   /// Nodes of at most this many points measure their radius exactly around the updated
   /// centre instead of bounding it: constant work per node, and much tighter spheres near
@@ -208,8 +210,9 @@ class SphereTree {
   std::uint32_t addRootAndBranches();
   /// Orders the node's slots along the longest axis of its points' rest box.
   void sortAlongLongestAxis(const SphereNode& node);
-  /// Splits the node's slots into up to `branching` equal parts, one child each.
-  void addChildren(std::uint32_t index, std::uint32_t branching);
+  /// Splits the node's slots into `children` equal parts (at most its point count), one
+  /// child each.
+  void addChildren(std::uint32_t index, std::uint32_t children);
   void computeRestData(std::uint32_t index);
   const NodeState& updateSphere(std::uint32_t index);
   const NodeState& updateWithLeaves(std::uint32_t index, std::uint32_t leaf_limit);

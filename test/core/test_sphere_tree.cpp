@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <random>
+#include <string>
 
 #include "deformable_collision/scenes/shapes.h"
 
@@ -70,6 +71,63 @@ TEST(SphereTreeStructure, BalancedWrappedAndOneBranchPerCluster) {
     }
   }
 }
+
+struct LeafSplitCase {
+  const char* name;
+  std::size_t points;
+  int leaf_size;
+  int branching;
+  /// The least product of factors branching and branching + 1 >= points / leaf_size.
+  std::uint32_t leaves;
+  int leaf_level;
+};
+
+// One cluster's leaves: the fewest that levels of `branching` or `branching + 1` equal
+// parts can make with at most leaf_size points each, all on one level, within one point of
+// each other; far fewer than halving alone makes when a cluster holds just over a power of
+// two times leaf_size (a cluster of S1 at 160k, about 36,600 points: 4,608 leaves of 7.9
+// points, not 8,192 of 4.5).
+class LeafSplitTest : public ::testing::TestWithParam<LeafSplitCase> {};
+
+TEST_P(LeafSplitTest, FewestFullLeavesOnOneLevel) {
+  const LeafSplitCase& c = GetParam();
+  ShapeMatchingBody body(sampleEllipsoid(c.points, {0.5, 0.3, 0.2}, 3),
+                         configFor(DeformationMode::kLinear, 1));
+  SphereTree tree(body, {c.branching, c.leaf_size});
+  std::uint32_t leaves = 0;
+  std::uint32_t fewest_points = tree.node(0).point_count;
+  std::uint32_t most_points = 0;
+  for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
+    const SphereNode& node = tree.node(i);
+    if (!node.isLeaf()) {
+      EXPECT_TRUE(node.child_count == static_cast<std::uint32_t>(c.branching) ||
+                  node.child_count == static_cast<std::uint32_t>(c.branching) + 1)
+          << "node " << i << " has " << node.child_count << " children";
+      continue;
+    }
+    ++leaves;
+    EXPECT_EQ(node.level, c.leaf_level) << "leaf " << i;
+    fewest_points = std::min(fewest_points, node.point_count);
+    most_points = std::max(most_points, node.point_count);
+  }
+  EXPECT_EQ(leaves, c.leaves);
+  EXPECT_EQ(tree.maxLevel(), c.leaf_level);
+  EXPECT_LE(most_points, static_cast<std::uint32_t>(c.leaf_size));
+  EXPECT_LE(most_points - fewest_points, 1u);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Cases, LeafSplitTest,
+    ::testing::Values(LeafSplitCase{"s1_160k_cluster", 36600, 8, 2, 4608, 11},
+                      LeafSplitCase{"just_over_a_power_of_two", 4609, 8, 2, 648, 7},
+                      LeafSplitCase{"halving_is_fewest", 1000, 8, 2, 128, 7},
+                      LeafSplitCase{"two_wide_levels", 1100, 8, 2, 144, 6},
+                      LeafSplitCase{"branching_three", 700, 5, 3, 144, 4},
+                      LeafSplitCase{"branching_four_exact", 2000, 16, 4, 125, 3},
+                      LeafSplitCase{"one_wide_level", 17, 8, 2, 3, 1},
+                      LeafSplitCase{"one_over_a_leaf", 9, 8, 2, 2, 1},
+                      LeafSplitCase{"one_leaf", 8, 8, 2, 1, 0}),
+    [](const auto& info) { return std::string(info.param.name); });
 
 // The leaves under every node are one range of the leaf order, and a leaf's entry in the
 // leaf spheres is its current sphere, under every update method.
