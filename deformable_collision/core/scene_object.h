@@ -189,6 +189,10 @@ struct Scene::ResolvingPair {
   /// The pushes' normals weighted by their depths: the pair's normal, not unit.
   Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
   bool held = false;  ///< The two were in contact in the last cycle.
+  /// Between dynamic objects: a push along the pair's normal would drive a (b, against the
+  /// normal) into a fixed object that pushed it off in this response.
+  bool a_against_fixed = false;
+  bool b_against_fixed = false;
 };
 
 }  // namespace deformable_collision

@@ -314,7 +314,11 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
                      b.translation};
   pair.held = heldContact(pair);
   pair.side_of_a = sideOfA(pair);
-  if (!pair.one_side_fixed) pair.dynamic_normal = separatingNormal(pair);
+  if (!pair.one_side_fixed) {
+    pair.dynamic_normal = separatingNormal(pair);
+    pair.a_against_fixed = againstFixedPartner(a, pair.dynamic_normal);
+    pair.b_against_fixed = againstFixedPartner(b, -pair.dynamic_normal);
+  }
   collectPushes(pair);
   if (pushes_.empty()) {
     holdClearContact(pair);
@@ -329,6 +333,14 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
   const Eigen::Vector3d normal = pair.normal_sum.normalized();
   rememberSide(pair, normal);
   exchangeVelocities(pair, normal);
+}
+
+bool Scene::againstFixedPartner(const Object& object, const Eigen::Vector3d& direction) const {
+  for (const auto& side : object.contact_memory.sides) {
+    if (side.cycle != cycle_count_ || objects_[side.partner]->dynamic()) continue;
+    if (side.normal.dot(direction) < -kCarryingCosine * direction.norm()) return true;
+  }
+  return false;
 }
 
 // A pair in contact whose points are all clear of half the contact distance needs no push,
@@ -528,12 +540,15 @@ bool Scene::pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& c
                        (a.translation - b.translation).dot(push.normal);
   if (depth <= 0.0) return false;
   // Shared by inverse node mass: a's share is b's node mass over both; the object nearer
-  // to a support does not move (shock propagation).
+  // to a support does not move (shock propagation), nor one that the push would drive into
+  // a fixed object (a wall) which has pushed it off in this response.
   const double mass_a = a.body.pointMassKg() * push.points_a;
   const double mass_b = b.body.pointMassKg() * push.points_b;
-  const double share_of_a = a.support_depth < b.support_depth   ? 0.0
-                            : b.support_depth < a.support_depth ? 1.0
-                                                                : mass_b / (mass_a + mass_b);
+  const bool a_holds = a.support_depth < b.support_depth || pair.a_against_fixed;
+  const bool b_holds = b.support_depth < a.support_depth || pair.b_against_fixed;
+  const double share_of_a = a_holds && !b_holds   ? 0.0
+                            : b_holds && !a_holds ? 1.0
+                                                  : mass_b / (mass_a + mass_b);
   push.depth_a = depth * share_of_a;
   push.depth_b = depth - push.depth_a;
   return true;
