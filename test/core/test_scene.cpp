@@ -1253,7 +1253,7 @@ class SqueezeTest : public ::testing::TestWithParam<int> {};
 // clear of its jaw and deep into the other, and the fruit sat 2.5 cm towards the jaw resolved
 // first, at coarse levels swinging by 3 to 4 cm between the sides, out of the jaws with
 // the jaws' order swapped (docs/design.md, "Fixed partners taken together").
-TEST_P(SqueezeTest, FruitStaysMidwayBetweenTheClosedJaws) {
+TEST_P(SqueezeTest, FruitStaysBetweenTheClosedJawsWhicheverComesFirst) {
   const double contact_distance = makeDemoScene(DemoScene::kGripper)->config().contact_distance_m;
   const std::array<std::array<std::string, 2>, 2> jaw_orders{
       {{"jaw_left", "jaw_right"}, {"jaw_right", "jaw_left"}}};
@@ -1266,10 +1266,10 @@ TEST_P(SqueezeTest, FruitStaysMidwayBetweenTheClosedJaws) {
     EXPECT_GT(fruit.low_m, -0.06 - 0.25 * contact_distance);
     EXPECT_LT(fruit.high_m, 0.06 + 0.25 * contact_distance);
     EXPECT_LT(fruit.most_center_m - fruit.least_center_m, 0.25 * contact_distance) << "swing";
-    // Not at the very middle: the fruit's sampled points are not symmetric (6.2 mm off at most
-    // over the levels, against 24 to 26 mm with the bias).
-    EXPECT_LT(std::max(-fruit.least_center_m, fruit.most_center_m), 0.01) << "off centre";
   }
+  // Where the fruit settles depends on its own sampled points and its path into the jaws (up
+  // to 6 mm off the middle with g++, 16 mm with clang at level 0), not on which jaw comes
+  // first: with the bias the two orders put it 5 cm apart.
   EXPECT_NEAR(squeezed[0].least_center_m, squeezed[1].least_center_m, 1e-3);
   EXPECT_NEAR(squeezed[0].most_center_m, squeezed[1].most_center_m, 1e-3);
 }
