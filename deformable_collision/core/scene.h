@@ -337,6 +337,9 @@ class Scene {
   bool pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& contact,
                           ContactPush& push);
   void clearPassedPoints(ResolvingPair& pair);
+  /// The least `touched.away` component of the object's points in line with the touched
+  /// nodes (infinity if none).
+  double lowestInLine(Object& moving, const TouchedSurface& touched);
   bool pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& contact,
                           ContactPush& push) const;
   void moveByMeanPush(ResolvingPair& pair);
@@ -410,6 +413,12 @@ class Scene {
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
   std::vector<std::uint32_t> proximity_stack_;  ///< Nodes nearOtherObject still has to visit.
+  /// A node lowestInLine still has to visit, and how low its sphere reaches.
+  struct ReachingNode {
+    std::uint32_t node;
+    double lowest_m;
+  };
+  std::vector<ReachingNode> lowest_descent_;
   QueryCounters query_counters_;
   CycleStats stats_;
   std::uint64_t cycle_count_ = 1;

@@ -499,14 +499,11 @@ Scene::TouchedSurface Scene::touchedSurface(const ResolvingPair& pair,
 // the whole object when the pair's move leaves it deeper than that: nothing dents it.
 void Scene::clearPassedPoints(ResolvingPair& pair) {
   const bool a_fixed = !pair.a.dynamic();
-  const Object& moving = a_fixed ? pair.b : pair.a;
+  Object& moving = a_fixed ? pair.b : pair.a;
   const TouchedSurface touched =
       touchedSurface(pair, (a_fixed ? -1.0 : 1.0) * pair.normal_sum.normalized());
   const Eigen::Vector3d& away = touched.away;
-  double lowest = std::numeric_limits<double>::infinity();
-  for (const Eigen::Vector3d& point : moving.body.positions()) {
-    if (touched.inLine(point)) lowest = std::min(lowest, point.dot(away));
-  }
+  const double lowest = lowestInLine(moving, touched);
   // As in pushFromFixedPlane, the object has not moved in this response yet.
   const double depth = touched.level + 0.5 * config_.contact_distance_m - lowest;
   double deepest_push = 0.0;
@@ -520,6 +517,56 @@ void Scene::clearPassedPoints(ResolvingPair& pair) {
   Eigen::Vector3d& move = a_fixed ? pair.move_b : pair.move_a;
   const double moved = move.dot(away);
   if (moved < needed) move += (needed - moved) * away;
+}
+
+// Down the object's tree rather than over all its points: a gripper's fruit held between two
+// jaws on a floor read its 10,000 points three times a cycle, 6% of the demo scene's cycle.
+// A node is opened only if its sphere lies in line with the touched nodes and reaches below
+// the lowest point found so far, the lowest reaching first, so that the bound tightens
+// early. The margin keeps rounding from pruning a point the scan would have taken, so the
+// result is the scan's to the bit.
+double Scene::lowestInLine(Object& moving, const TouchedSurface& touched) {
+  const Eigen::Vector3d& away = touched.away;
+  const auto& positions = moving.body.positions();
+  const auto& indices = moving.tree.pointIndices();
+  double lowest = std::numeric_limits<double>::infinity();
+  // The least `away` component the sphere allows its points, or nothing if none of them can
+  // be in line.
+  const auto reach_in_line = [&](const Sphere& sphere) -> std::optional<double> {
+    const double margin = 1e-12 * (sphere.center.norm() + sphere.radius);
+    const Eigen::Vector2d across(sphere.center.dot(touched.across_u),
+                                 sphere.center.dot(touched.across_v));
+    const Eigen::AlignedBox2d box(across.array() - (sphere.radius + margin),
+                                  across.array() + (sphere.radius + margin));
+    if (!box.intersects(touched.in_line)) return std::nullopt;
+    return sphere.center.dot(away) - sphere.radius - margin;
+  };
+  lowest_descent_.clear();
+  if (const auto root = reach_in_line(moving.tree.sphere(0))) lowest_descent_.push_back({0, *root});
+  while (!lowest_descent_.empty()) {
+    const ReachingNode reaching = lowest_descent_.back();
+    lowest_descent_.pop_back();
+    if (reaching.lowest_m >= lowest) continue;
+    const NodeState& state = moving.tree.current(reaching.node);
+    if (state.isLeaf()) {
+      for (std::uint32_t k = 0; k < state.point_count; ++k) {
+        const Eigen::Vector3d& point = positions[indices[state.first_point + k]];
+        if (touched.inLine(point)) lowest = std::min(lowest, point.dot(away));
+      }
+      continue;
+    }
+    const std::size_t first_child = lowest_descent_.size();
+    for (std::uint32_t child = state.first_child; child < state.first_child + state.child_count;
+         ++child) {
+      if (const auto reach = reach_in_line(moving.tree.sphere(child))) {
+        if (*reach < lowest) lowest_descent_.push_back({child, *reach});
+      }
+    }
+    // The lowest reaching child last on the stack: visited next.
+    std::sort(lowest_descent_.begin() + first_child, lowest_descent_.end(),
+              [](const ReachingNode& x, const ReachingNode& y) { return x.lowest_m > y.lowest_m; });
+  }
+  return lowest;
 }
 
 // Two dynamic nodes, along the pair's normal, the depth shared by inverse mass. At the
