@@ -324,8 +324,8 @@ class Scene {
                         Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const;
   Eigen::Vector3d sideOfA(const ResolvingPair& pair);
   Eigen::Vector3d separatingNormal(const ResolvingPair& pair);
-  /// Whether moving `object` along `direction` drives it into a fixed object that pushed it
-  /// off in this response (their normals more than 45 degrees apart).
+  /// Whether moving `object` along the unit `direction` drives it into a fixed object that
+  /// pushed it off in this response (within 45 degrees of straight into it).
   bool againstFixedPartner(const Object& object, const Eigen::Vector3d& direction) const;
   /// One push per contact still too deep into pushes_.
   void collectPushes(const ResolvingPair& pair);

@@ -135,23 +135,22 @@ void Scene::respond() {
     const std::uint32_t depth_y = nearer_support(contact_runs_[y]);
     return depth_x != depth_y ? depth_x < depth_y : x < y;
   });
-  // The pairs with a fixed object come first (their support depth is 0); their moves are
-  // made together before the pairs between dynamic objects (moveByFixedPartners).
   velocity_exchanges_.clear();
   fixed_pair_moves_.clear();
-  bool fixed_pairs_moved = false;
-  for (const std::uint32_t r : resolve_order_) {
+  const auto resolve = [this](std::uint32_t r) {
     const ContactRun& run = contact_runs_[r];
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
-    if (!a.dynamic() && !b.dynamic()) continue;
-    if (a.dynamic() && b.dynamic() && !fixed_pairs_moved) {
-      moveByFixedPartners();
-      fixed_pairs_moved = true;
-    }
-    resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
-  }
-  if (!fixed_pairs_moved) moveByFixedPartners();
+    if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
+  };
+  // The pairs with a fixed object come first (support depth 0); their moves are made
+  // together before the pairs between dynamic objects are resolved.
+  const auto dynamic_pairs =
+      std::partition_point(resolve_order_.begin(), resolve_order_.end(),
+                           [&](std::uint32_t r) { return nearer_support(contact_runs_[r]) == 0; });
+  std::for_each(resolve_order_.begin(), dynamic_pairs, resolve);
+  moveByFixedPartners();
+  std::for_each(dynamic_pairs, resolve_order_.end(), resolve);
   repeatVelocityExchanges();
   stopApproachToFixedPartners();
   for (const ContactRun& run : contact_runs_) {
@@ -338,7 +337,8 @@ void Scene::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32
 bool Scene::againstFixedPartner(const Object& object, const Eigen::Vector3d& direction) const {
   for (const auto& side : object.contact_memory.sides) {
     if (side.cycle != cycle_count_ || objects_[side.partner]->dynamic()) continue;
-    if (side.normal.dot(direction) < -kCarryingCosine * direction.norm()) return true;
+    // Within 45 degrees of straight into the partner, the cone in which a surface carries.
+    if (side.normal.dot(direction) < -kCarryingCosine) return true;
   }
   return false;
 }
@@ -426,8 +426,7 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
   const std::uint32_t moving_node = a_fixed ? c.node_b : c.node_a;
   const SphereNode& node = moving.tree.node(moving_node);
   // The object has not moved in this response yet: the pairs with fixed objects come first,
-  // and their moves wait for moveByFixedPartners.
-  // The node's sphere bounds its points along the plane's normal: where even its lowest
+  // and their moves wait for moveByFixedPartners. The node's sphere bounds its points along the plane's normal: where even its lowest
   // point leaves no depth, no point does, and the points are not read (a coarse node holds
   // hundreds, and many of a pile's coarse contacts with a floor or a wall are such). The
   // margin is far above the rounding of these sums, so the outcome is the points' own.
