@@ -97,21 +97,26 @@ __attribute__((target("avx512f"))) inline bool closestPairOfEightAvx512(
     const std::uint32_t rows = std::min<std::uint32_t>(8, count_a - first_row);
     __m512d squared[8];
     for (std::uint32_t r = 0; r < 8; ++r) {
-      // Rows past a's points repeat its first one, which cannot come first or closer.
-      const std::uint32_t s = first_row + (r < rows ? r : 0);
+      // Rows past a's points repeat its last one, which cannot come first or closer; a
+      // select, not a branch per row count (leaves of 7 and 8 points alternate).
+      const std::uint32_t s = first_row + std::min(r, rows - 1);
       squared[r] = _mm512_mask_mov_pd(infinity, lanes,
                                       squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z));
     }
     const __m512d least_of_rows = _mm512_min_pd(
         _mm512_min_pd(_mm512_min_pd(squared[0], squared[1]), _mm512_min_pd(squared[2], squared[3])),
         _mm512_min_pd(_mm512_min_pd(squared[4], squared[5]), _mm512_min_pd(squared[6], squared[7])));
-    const double least = _mm512_reduce_min_pd(least_of_rows);
-    // Most leaf pairs in reach have no pair close enough: they end on one comparison.
-    if (!(least < below_squared)) continue;
-    // Row-major order of the pairs at the least distance: the first set bit is the first pair.
+    // Most leaf pairs in reach have no pair close enough: they end on one comparison, before
+    // the rows' least is reduced across lanes.
+    if (_mm512_cmp_pd_mask(least_of_rows, _mm512_set1_pd(below_squared), _CMP_LT_OQ) == 0) {
+      continue;
+    }
+    const __m512d target = leastInEveryLaneAvx512(least_of_rows);
+    const double least = _mm512_cvtsd_f64(target);
+    // Row-major order of the pairs at the least distance: the first set bit is the first pair
+    // (a repeated row's bits come after the same bits of the row it repeats).
     std::uint64_t at_least = 0;
-    const __m512d target = _mm512_set1_pd(least);
-    for (std::uint32_t r = 0; r < rows; ++r) {
+    for (std::uint32_t r = 0; r < 8; ++r) {
       at_least |= static_cast<std::uint64_t>(
                       _mm512_mask_cmp_pd_mask(lanes, squared[r], target, _CMP_EQ_OQ))
                   << (8 * r);
