@@ -100,44 +100,73 @@ __attribute__((target("avx512f"))) double gatherLeafAvx512(
 DEFORMABLE_COLLISION_END_WIDE_KERNELS
 #endif
 
+/// Leaves under the largest node of at most SphereTree::kBucketLeaves leaves, for a branch
+/// whose `depth` levels split in `wide` at the top `wide_levels` and in `narrow` below.
+std::uint64_t bucketLeaves(int depth, int wide_levels, std::uint64_t narrow, std::uint64_t wide) {
+  std::uint64_t leaves = 1;
+  for (int level = depth - 1; level >= 0; --level) {
+    const std::uint64_t split = level < wide_levels ? wide : narrow;
+    if (leaves * split > SphereTree::kBucketLeaves) break;
+    leaves *= split;
+  }
+  return leaves;
+}
+
 /// The child counts, level by level, under a cluster's branch of `points` points: every
 /// node of a level splits into that many equal parts, so the branch ends in as many leaves
 /// as the counts' product, all on one level, each within one point of the others (where
 /// it has at least as many points as leaves: with leaf_size below branching it may not). Halving
 /// alone ends in the next power of two above points / leaf_size leaves, which leaves them
 /// half full for a cluster of just over a power of two times leaf_size points, and a query
-/// to the leaves pays per leaf pair. The counts are `branching` or `branching + 1`, with
-/// the least product that keeps leaves at most `leaf_size` points; the wider levels come
-/// first, so that the levels above the leaves, which make the query's buckets, split in
-/// `branching`.
+/// to the leaves pays per leaf pair. The counts are `branching` or `branching + 1`, the
+/// wider levels first, so that the levels above the leaves, which make the query's buckets,
+/// split in `branching`. Of the products that keep leaves at most `leaf_size` points, the
+/// least is taken unless one at most an eighth larger has larger buckets: the query pays
+/// per bucket pair as well as per leaf pair, and splits in three all the way down end in
+/// buckets of three leaves (a cluster of 5,500 points: 729 leaves in buckets of 3, or 768
+/// in buckets of 8).
 std::vector<std::uint32_t> levelChildCounts(std::uint32_t points, std::uint32_t leaf_size,
                                             std::uint32_t branching) {
   const std::uint64_t narrow = branching;
   const std::uint64_t wide = narrow + 1;
   const std::uint64_t least_leaves = (std::uint64_t{points} + leaf_size - 1) / leaf_size;
-  std::uint64_t best_leaves = 0;
-  int best_depth = 0;
-  int best_wide_levels = 0;
-  // Of `depth` levels, `wide_levels` split in branching + 1: narrow^(depth - wide_levels) *
-  // wide^wide_levels leaves, computed by trading one narrow factor for a wide one at a time.
+  struct Split {
+    std::uint64_t leaves;
+    int depth;
+    int wide_levels;
+  };
+  // At each depth the fewest wide levels that reach least_leaves: more wide levels there
+  // only add leaves and narrow the buckets. Of `depth` levels, `wide_levels` split in
+  // branching + 1: narrow^(depth - wide_levels) * wide^wide_levels leaves, computed by
+  // trading one narrow factor for a wide one at a time.
+  std::vector<Split> splits;
   std::uint64_t all_narrow = 1;
   for (int depth = 1; all_narrow < least_leaves; ++depth) {
     all_narrow *= narrow;
     std::uint64_t leaves = all_narrow;
     for (int wide_levels = 0; wide_levels <= depth; ++wide_levels) {
       if (leaves >= least_leaves) {
-        if (best_leaves == 0 || leaves < best_leaves) {
-          best_leaves = leaves;
-          best_depth = depth;
-          best_wide_levels = wide_levels;
-        }
+        splits.push_back({leaves, depth, wide_levels});
         break;
       }
       if (wide_levels < depth) leaves = leaves / narrow * wide;
     }
   }
-  std::vector<std::uint32_t> counts(static_cast<std::size_t>(best_depth), branching);
-  std::fill_n(counts.begin(), best_wide_levels, branching + 1);
+  if (splits.empty()) return {};
+  std::uint64_t fewest = splits.front().leaves;
+  for (const Split& split : splits) fewest = std::min(fewest, split.leaves);
+  const Split* best = nullptr;
+  std::uint64_t best_bucket = 0;
+  for (const Split& split : splits) {
+    if (8 * split.leaves > 9 * fewest) continue;
+    const std::uint64_t bucket = bucketLeaves(split.depth, split.wide_levels, narrow, wide);
+    if (!best || bucket > best_bucket || (bucket == best_bucket && split.leaves < best->leaves)) {
+      best = &split;
+      best_bucket = bucket;
+    }
+  }
+  std::vector<std::uint32_t> counts(static_cast<std::size_t>(best->depth), branching);
+  std::fill_n(counts.begin(), best->wide_levels, branching + 1);
   return counts;
 }
 

@@ -77,16 +77,17 @@ struct LeafSplitCase {
   std::size_t points;
   int leaf_size;
   int branching;
-  /// The least product of factors branching and branching + 1 >= points / leaf_size.
+  /// The least product of factors branching and branching + 1 >= points / leaf_size, or
+  /// one at most an eighth larger whose buckets hold more leaves.
   std::uint32_t leaves;
   int leaf_level;
 };
 
 // One cluster's leaves: the fewest that levels of `branching` or `branching + 1` equal
-// parts can make with at most leaf_size points each, all on one level, within one point of
-// each other; far fewer than halving alone makes when a cluster holds just over a power of
-// two times leaf_size (a cluster of S1 at 160k, about 36,600 points: 4,608 leaves of 7.9
-// points, not 8,192 of 4.5).
+// parts can make with at most leaf_size points each (or up to an eighth more, for fuller
+// buckets), all on one level, within one point of each other; far fewer than halving alone
+// makes when a cluster holds just over a power of two times leaf_size (a cluster of S1 at
+// 160k, about 36,600 points: 4,608 leaves of 7.9 points, not 8,192 of 4.5).
 class LeafSplitTest : public ::testing::TestWithParam<LeafSplitCase> {};
 
 TEST_P(LeafSplitTest, FewestFullLeavesOnOneLevel) {
@@ -122,7 +123,11 @@ INSTANTIATE_TEST_SUITE_P(
                       LeafSplitCase{"just_over_a_power_of_two", 4609, 8, 2, 648, 7},
                       LeafSplitCase{"halving_is_fewest", 1000, 8, 2, 128, 7},
                       LeafSplitCase{"two_wide_levels", 1100, 8, 2, 144, 6},
+                      // 729 = 3^6 leaves would end in buckets of three leaves; 768 = 2^8 * 3,
+                      // within an eighth of it, in buckets of eight.
+                      LeafSplitCase{"full_buckets_for_a_few_more_leaves", 5500, 8, 2, 768, 9},
                       LeafSplitCase{"branching_three", 700, 5, 3, 144, 4},
+                      // 5^3 = 125: no split of at most an eighth more leaves has larger buckets.
                       LeafSplitCase{"branching_four_exact", 2000, 16, 4, 125, 3},
                       LeafSplitCase{"one_wide_level", 17, 8, 2, 3, 1},
                       LeafSplitCase{"one_over_a_leaf", 9, 8, 2, 2, 1},
