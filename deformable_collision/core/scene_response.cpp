@@ -426,10 +426,11 @@ bool Scene::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c
   const std::uint32_t moving_node = a_fixed ? c.node_b : c.node_a;
   const SphereNode& node = moving.tree.node(moving_node);
   // The object has not moved in this response yet: the pairs with fixed objects come first,
-  // and their moves wait for moveByFixedPartners. The node's sphere bounds its points along the plane's normal: where even its lowest
-  // point leaves no depth, no point does, and the points are not read (a coarse node holds
-  // hundreds, and many of a pile's coarse contacts with a floor or a wall are such). The
-  // margin is far above the rounding of these sums, so the outcome is the points' own.
+  // and their moves wait for moveByFixedPartners. The node's sphere bounds its points along
+  // the plane's normal: where even its lowest point leaves no depth, no point does, and the
+  // points are not read (a coarse node holds hundreds, and many of a pile's coarse contacts
+  // with a floor or a wall are such). The margin is far above the rounding of these sums, so
+  // the outcome is the points' own.
   const Sphere& bound = moving.tree.sphere(moving_node);
   const Eigen::Vector3d from_plane = bound.center - surface.plane_point;
   const double margin = 1e-12 * (from_plane.norm() + bound.radius + std::abs(surface.reach) +
