@@ -7,6 +7,7 @@
 
 #include "deformable_collision/core/point_spacing.h"
 #include "deformable_collision/ros/cloud_transform.h"
+#include "deformable_collision/ros/contact_array_serialization.h"
 
 namespace deformable_collision {
 namespace {
