@@ -70,26 +70,59 @@ Scene::Scene(const SceneConfig& config) : config_(config) {
 
 Scene::~Scene() = default;
 
+Scene::PreparedObject::PreparedObject() = default;
+Scene::PreparedObject::~PreparedObject() = default;
+Scene::PreparedObject::PreparedObject(PreparedObject&&) noexcept = default;
+Scene::PreparedObject& Scene::PreparedObject::operator=(PreparedObject&&) noexcept = default;
+
 std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vector3d> rest_points_m) {
-  if (config.name.empty()) throw std::invalid_argument("object name is empty");
+  // Before the costly part: a name in use fails at once.
   if (findObject(config.name)) {
     throw std::invalid_argument("object name '" + config.name + "' is used twice");
   }
+  PreparedObject prepared = prepareObject(config, std::move(rest_points_m));
+  return addObject(std::move(prepared));
+}
+
+Scene::PreparedObject Scene::prepareObject(const ObjectConfig& config,
+                                           std::vector<Eigen::Vector3d> rest_points_m) const {
+  if (config.name.empty()) throw std::invalid_argument("object name is empty");
   ObjectConfig checked = config;
   if (config.kind != ObjectKind::kDynamic) {
     // Only dynamic objects are simulated; the others are registered, never stepped.
     checked.shape.damping = 0.0;
   }
   if (config.kind == ObjectKind::kKinematic) checked.shape.mode = DeformationMode::kRigid;
-  objects_.push_back(makeObject(checked, std::move(rest_points_m)));
+  PreparedObject prepared;
+  prepared.object_ = makeObject(checked, std::move(rest_points_m));
+  return prepared;
+}
+
+std::size_t Scene::addObject(PreparedObject&& prepared) {
+  if (prepared.empty()) throw std::invalid_argument("addObject: the prepared object is empty");
+  const std::string& name = prepared.object_->config.name;
+  if (findObject(name)) throw std::invalid_argument("object name '" + name + "' is used twice");
+  sweep_entries_.reserve(objects_.size() + 1);
+  objects_.push_back(std::move(prepared.object_));
   objects_.back()->revision = ++revisions_;
-  sweep_entries_.reserve(objects_.size());
   return objects_.size() - 1;
 }
 
 void Scene::resetRestShape(std::size_t object, std::vector<Eigen::Vector3d> rest_points_m) {
   std::unique_ptr<Object>& slot = objects_.at(object);
   slot = makeObject(slot->config, std::move(rest_points_m));
+  slot->revision = ++revisions_;
+}
+
+void Scene::resetRestShape(std::size_t object, PreparedObject&& prepared) {
+  std::unique_ptr<Object>& slot = objects_.at(object);
+  if (prepared.empty()) throw std::invalid_argument("resetRestShape: the prepared object is empty");
+  if (prepared.object_->config.name != slot->config.name) {
+    throw std::invalid_argument("resetRestShape: object '" + slot->config.name +
+                                "' given a rest shape prepared for '" +
+                                prepared.object_->config.name + "'");
+  }
+  slot = std::move(prepared.object_);
   slot->revision = ++revisions_;
 }
 

@@ -100,6 +100,8 @@ using CycleCostSource = std::function<double(const CycleStats& cycle)>;
 /// resolved one after the other, objects nearer to a fixed support acting as fixed (shock
 /// propagation). Steady-state cycles allocate nothing.
 class Scene {
+  struct Object;  // Private (scene_object.h); declared here for PreparedObject.
+
  public:
   /// @throw std::invalid_argument naming the bad value.
   explicit Scene(const SceneConfig& config);
@@ -107,14 +109,46 @@ class Scene {
   Scene(const Scene&) = delete;
   Scene& operator=(const Scene&) = delete;
 
+  /// An object made for this scene, not yet in it (prepareObject()); empty once added.
+  class PreparedObject {
+   public:
+    PreparedObject();
+    ~PreparedObject();
+    PreparedObject(PreparedObject&&) noexcept;
+    PreparedObject& operator=(PreparedObject&&) noexcept;
+
+    bool empty() const { return object_ == nullptr; }
+
+   private:
+    friend class Scene;
+    std::unique_ptr<Object> object_;
+  };
+
   /// Adds an object with its rest shape (in the scene's frame) and returns its index.
   /// @throw std::invalid_argument for an empty or duplicate name or a bad shape.
   std::size_t addObject(const ObjectConfig& config, std::vector<Eigen::Vector3d> rest_points_m);
+
+  /// Makes what addObject(config, rest_points_m) would add (its clusters and hierarchy: the
+  /// costly part, tens of milliseconds for thousands of points) without adding it. Reads only
+  /// what the scene's construction fixed (its tree and contact distance), never its objects:
+  /// another thread may prepare objects while this one cycles.
+  /// @throw std::invalid_argument for an empty name or a bad shape.
+  PreparedObject prepareObject(const ObjectConfig& config,
+                               std::vector<Eigen::Vector3d> rest_points_m) const;
+  /// Adds a prepared object and returns its index; `prepared` is then empty. Nothing changes
+  /// if it throws.
+  /// @throw std::invalid_argument if `prepared` is empty or its name is already used.
+  std::size_t addObject(PreparedObject&& prepared);
 
   /// Replaces an object's rest shape (its points, clusters and hierarchy) and puts it there
   /// at rest; the point count may change. Nothing changes if it throws.
   /// @throw std::invalid_argument for a bad shape, std::out_of_range for a bad index.
   void resetRestShape(std::size_t object, std::vector<Eigen::Vector3d> rest_points_m);
+  /// The same with a rest shape prepared (prepareObject()) with the object's configuration;
+  /// `prepared` is then empty. Nothing changes if it throws.
+  /// @throw std::invalid_argument if `prepared` is empty or made for another name,
+  /// std::out_of_range for a bad index.
+  void resetRestShape(std::size_t object, PreparedObject&& prepared);
 
   /// Moves a kinematic object rigidly to `pose` (applied to its rest shape).
   /// @throw std::invalid_argument if the object is not kinematic or the pose not finite.
@@ -213,8 +247,6 @@ class Scene {
   const Sphere& currentSphere(std::size_t object, std::uint32_t node);
 
  private:
-  struct Object;
-
   /// An object with its hierarchy (and rest planes, if fixed); names the object if it throws.
   std::unique_ptr<Object> makeObject(const ObjectConfig& config,
                                      std::vector<Eigen::Vector3d> rest_points_m) const;

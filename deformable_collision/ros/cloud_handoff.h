@@ -10,6 +10,8 @@
 #include <optional>
 #include <vector>
 
+#include "deformable_collision/core/scene.h"
+
 namespace deformable_collision {
 
 /// One object's cloud as the reader read it: its points, transformed and checked, and what
@@ -21,6 +23,9 @@ struct ReadCloud {
   ros::Time stamp;
   std::chrono::steady_clock::time_point arrival;
   bool float64 = false;  ///< Any coordinate was FLOAT64: the object's outputs keep that precision.
+  /// The object made from this cloud (its first, or any with on_cloud: reset) by the reader,
+  /// for the cycle to add: its clusters and hierarchy are built off the cycle's thread.
+  Scene::PreparedObject prepared;
 };
 
 /// The newest read cloud of each object, passed from the thread that reads clouds to the

@@ -246,14 +246,14 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
       }
     }
     const std::vector<Eigen::Vector3d>& points = tracked ? trackedPoints(slot, cloud.points) : cloud.points;
-    slot.index = scene_.addObject(slot.params.object, points);
+    slot.index = scene_.addObject(std::move(cloud.prepared));
     ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
              points.size(), slot.subscriber.getTopic().c_str(), toString(slot.params.object.kind));
     warnIfPorous(slot.params.object.name, points);
     if (tracked) slot.tracked_cloud_size = cloud.points.size();
     slot.exists = true;
   } else if (slot.params.on_cloud == OnCloud::kReset) {
-    scene_.resetRestShape(*slot.index, cloud.points);
+    scene_.resetRestShape(*slot.index, std::move(cloud.prepared));
   } else if (slot.params.on_cloud == OnCloud::kRegister) {
     registerCloud(slot, cloud);
   } else {

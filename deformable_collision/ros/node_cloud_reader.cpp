@@ -1,6 +1,7 @@
 // The node's reader thread: each cloud is converted, transformed into its object's frame and
 // checked here, off the cycle's thread, then handed to the cycle (CloudHandoff).
 #include <algorithm>
+#include <iterator>
 
 #include "deformable_collision/ros/cloud_transform.h"
 #include "deformable_collision/ros/deformable_collision_node.h"
@@ -188,6 +189,17 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
       std::none_of(read.points.begin(), read.points.end(),
                    [](const Eigen::Vector3d& p) { return p.allFinite(); })) {
     return reject("every point is non-finite");
+  }
+  read.prepared = Scene::PreparedObject();
+  if (!exists || slot.params.on_cloud == OnCloud::kReset) {
+    // A new shape's clusters and hierarchy (tens of milliseconds for thousands of points) are
+    // built here, off the cycle's thread, which then only puts the object in the scene. The
+    // rest shape is the cloud's finite points (a tracked cloud keeps its holes as NaN).
+    std::vector<Eigen::Vector3d> rest_shape;
+    rest_shape.reserve(read.points.size());
+    std::copy_if(read.points.begin(), read.points.end(), std::back_inserter(rest_shape),
+                 [](const Eigen::Vector3d& p) { return p.allFinite(); });
+    read.prepared = scene_.prepareObject(slot.params.object, std::move(rest_shape));
   }
   non_finite_points_ += result.non_finite;
   read.stamp = cloud.header.stamp;

@@ -85,15 +85,23 @@ bool allFinite(const Scene& scene) {
 // contact distance above the floor (up to the contact distance more at coarse levels, whose
 // nodes are larger).
 
-/// Adds the dropped box to `scene`: rigid, 10 cm, 2000 points, 0.2 m above the floor.
-std::size_t addDroppedBox(Scene& scene) {
+/// The dropped box: rigid, 10 cm, 2000 points, 0.2 m above the floor.
+ObjectConfig droppedBoxConfig() {
   ObjectConfig box;
   box.name = "box";
   box.shape.mode = DeformationMode::kRigid;
   box.shape.stiffness = 1.0;
+  return box;
+}
+
+Points droppedBoxPoints() {
   Points points = sampleBox(2000, {0.1, 0.1, 0.1}, 3);
   for (auto& p : points) p.z() += 0.2;
-  return scene.addObject(box, points);
+  return points;
+}
+
+std::size_t addDroppedBox(Scene& scene) {
+  return scene.addObject(droppedBoxConfig(), droppedBoxPoints());
 }
 
 /// Every level of the floor and the dropped box, 0 to the finest.
@@ -942,6 +950,54 @@ TEST(Scene, ResetRestShapeReplacesTheShapeOrNothing) {
   }
   EXPECT_THROW(scene.currentSphere(b, static_cast<std::uint32_t>(scene.tree(b).nodeCount())),
                std::out_of_range);
+}
+
+// An object prepared apart (as the node's reader thread does) and added later is the object
+// addObject makes: the same dropped box on the floor, added either way, falls and lands
+// through the same states, to the bit.
+TEST(Scene, APreparedObjectIsTheObjectAddObjectMakes) {
+  auto direct = sceneOnFloor(-1);
+  auto prepared = sceneOnFloor(-1);
+  addDroppedBox(*direct);
+  Scene::PreparedObject made = prepared->prepareObject(droppedBoxConfig(), droppedBoxPoints());
+  EXPECT_EQ(prepared->objectCount(), 1u);  // preparing adds nothing
+  EXPECT_EQ(prepared->addObject(std::move(made)), 1u);
+  EXPECT_TRUE(made.empty());
+  ASSERT_EQ(prepared->tree(1).nodeCount(), direct->tree(1).nodeCount());
+  for (int step = 0; step < 60; ++step) {
+    direct->cycle();
+    prepared->cycle();
+  }
+  EXPECT_EQ(prepared->body(1).positions(), direct->body(1).positions());
+  EXPECT_EQ(prepared->contacts().size(), direct->contacts().size());
+  EXPECT_FALSE(direct->contacts().empty());
+}
+
+TEST(Scene, PreparedObjectsAreCheckedWhenAdded) {
+  Scene scene(SceneConfig{});
+  ObjectConfig ball;
+  ball.name = "ball";
+  ObjectConfig unnamed;
+  EXPECT_THROW(scene.prepareObject(unnamed, sampleBox(50, {0.1, 0.1, 0.1}, 1)),
+               std::invalid_argument);
+  Scene::PreparedObject first = scene.prepareObject(ball, sampleBox(50, {0.1, 0.1, 0.1}, 1));
+  Scene::PreparedObject second = scene.prepareObject(ball, sampleBox(80, {0.1, 0.1, 0.1}, 2));
+  const std::size_t b = scene.addObject(std::move(first));
+  EXPECT_THROW(scene.addObject(std::move(second)), std::invalid_argument);  // the name is used
+  EXPECT_FALSE(second.empty());
+  EXPECT_THROW(scene.addObject(std::move(first)), std::invalid_argument);  // empty now
+  EXPECT_EQ(scene.objectCount(), 1u);
+
+  // A new rest shape prepared for the object replaces its shape; one for another does not.
+  scene.resetRestShape(b, std::move(second));
+  EXPECT_EQ(scene.body(b).positions().size(), 80u);
+  ObjectConfig other;
+  other.name = "other";
+  const Points before = scene.body(b).positions();
+  EXPECT_THROW(scene.resetRestShape(b, scene.prepareObject(other, sampleBox(60, {0.1, 0.1, 0.1}, 3))),
+               std::invalid_argument);
+  EXPECT_THROW(scene.resetRestShape(b, Scene::PreparedObject()), std::invalid_argument);
+  EXPECT_EQ(scene.body(b).positions(), before);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <optional>
 #include <set>
 #include <thread>
 
@@ -187,11 +188,13 @@ TEST(CloudHandoff, ThreeBuffersCirculateOnceGrown) {
 }
 
 // The reader thread converts clouds and hands them over while the cycle thread takes them,
-// early and for its cycles, and runs the scene's cycle on them, as the node does; under
-// ThreadSanitizer (the thread build of test/sanitized) any unsynchronised access between the
-// two is reported.
+// early and for its cycles, and runs the scene's cycle on them, as the node does; it also
+// prepares, while the cycle runs, a second object that the cycle adds and then gives new
+// rest shapes to. Under ThreadSanitizer (the thread build of test/sanitized) any
+// unsynchronised access between the two is reported.
 TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   constexpr int kClouds = 300;
+  constexpr int kCloudsPerShape = 10;
   const Points shape = sampleBox(200, Eigen::Vector3d(0.05, 0.05, 0.05), 7);
   SceneConfig config;
   config.contact_distance_m = 0.02;
@@ -200,11 +203,15 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   tracked.name = "tracked";
   tracked.kind = ObjectKind::kTracked;
   const std::size_t object = scene.addObject(tracked, shape);
+  ObjectConfig reshaped;
+  reshaped.name = "reshaped";
+  reshaped.kind = ObjectKind::kStatic;
 
-  CloudHandoff handoff({true});
+  CloudHandoff handoff({true, false});
   std::atomic<bool> reading{true};
   std::thread reader([&] {
     ReadCloud read;
+    ReadCloud shape_read;
     sensor_msgs::PointCloud2 message;
     Points moved = shape;
     for (int sequence = 1; sequence <= kClouds; ++sequence) {
@@ -215,24 +222,47 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
       }
       read.stamp = ros::Time(sequence);
       handoff.put(0, read);
+      if (sequence % kCloudsPerShape == 0) {
+        shape_read.points = sampleBox(50 + sequence / kCloudsPerShape, Eigen::Vector3d(0.1, 0.1, 0.1),
+                                      static_cast<std::uint32_t>(sequence));
+        for (auto& p : shape_read.points) p.z() += 0.5;
+        shape_read.prepared = scene.prepareObject(reshaped, shape_read.points);
+        shape_read.stamp = ros::Time(sequence);
+        handoff.put(1, shape_read);
+      }
     }
     reading = false;
   });
 
-  std::vector<ReadCloud> taken(1);
+  std::vector<ReadCloud> taken(2);
   std::vector<std::size_t> objects;
-  objects.reserve(1);
+  objects.reserve(2);
   int cycles = 0;
   int superseded = 0;  // applied early, then replaced before a cycle used it
   bool pending = false;
   double last_stamp = 0.0;
+  std::optional<std::size_t> reshaped_index;
+  std::size_t last_shape_points = 0;
+  int shapes_applied = 0;
   const auto apply = [&] {
-    if (objects.empty()) return;
-    EXPECT_GT(taken[0].stamp.toSec(), last_stamp) << "clouds come newest last";
-    last_stamp = taken[0].stamp.toSec();
-    scene.observe(object, taken[0].points);
-    superseded += pending;
-    pending = true;
+    for (const std::size_t taken_object : objects) {
+      ReadCloud& cloud = taken[taken_object];
+      if (taken_object == 1) {
+        if (reshaped_index) {
+          scene.resetRestShape(*reshaped_index, std::move(cloud.prepared));
+        } else {
+          reshaped_index = scene.addObject(std::move(cloud.prepared));
+        }
+        last_shape_points = cloud.points.size();
+        ++shapes_applied;
+        continue;
+      }
+      EXPECT_GT(cloud.stamp.toSec(), last_stamp) << "clouds come newest last";
+      last_stamp = cloud.stamp.toSec();
+      scene.observe(object, cloud.points);
+      superseded += pending;
+      pending = true;
+    }
   };
   for (int round = 0;; ++round) {
     const bool done = !reading;  // read before the takes: then the last cloud is in them
@@ -251,9 +281,15 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
     std::this_thread::yield();
   }
   reader.join();
+  handoff.takeForCycle(taken, objects);  // a last shape, which needs no cycle
+  apply();
   EXPECT_EQ(last_stamp, kClouds) << "the newest cloud is always taken";
-  EXPECT_EQ(cycles + superseded + handoff.coalesced(), static_cast<std::uint64_t>(kClouds));
+  EXPECT_EQ(cycles + superseded + shapes_applied + handoff.coalesced(),
+            static_cast<std::uint64_t>(kClouds + kClouds / kCloudsPerShape));
   EXPECT_NEAR(scene.body(object).positions()[0].x(), shape[0].x() + 1e-4 * kClouds, 1e-9);
+  ASSERT_TRUE(reshaped_index.has_value());
+  EXPECT_EQ(last_shape_points, 50u + kClouds / kCloudsPerShape);
+  EXPECT_EQ(scene.body(*reshaped_index).positions().size(), last_shape_points);
 }
 
 }  // namespace
