@@ -79,13 +79,18 @@ struct StatsRecord {
   ros::WallTime first_cycle;
   /// The figures leave out the cycles of this long after the first (objects being made).
   double warmup_s = 0.0;
+  /// When the object count last grew, after the first cycle: a warm-up shorter than this
+  /// leaves the making of objects in the figures (objects whose topics connect late).
+  double last_object_made_s = 0.0;
 
   void add(const deformable_collision::Stats& stats) {
     if (stats.objects == 0) return;
     if (cycles == 0) first_cycle = ros::WallTime::now();
+    const double since_first_s = (ros::WallTime::now() - first_cycle).toSec();
+    if (stats.objects > last.objects) last_object_made_s = since_first_s;
     ++cycles;
     last = stats;
-    if ((ros::WallTime::now() - first_cycle).toSec() < warmup_s) {
+    if (since_first_s < warmup_s) {
       before_figures = stats;
       return;
     }
@@ -252,7 +257,12 @@ void printReport(StatsRecord& record, double duration_s) {
                 record.warmup_s);
   }
   std::printf(") ===\n");
-  std::printf("objects %u, points %u, level of detail %u of %u (leaves)\n", last.objects,
+  std::printf("objects %u (the last made %.1f s after the first cycle%s), points %u, level of "
+              "detail %u of %u (leaves)\n",
+              last.objects, record.last_object_made_s,
+              record.warmup_s > 0.0 && record.last_object_made_s >= record.warmup_s
+                  ? ", after the warm-up"
+                  : "",
               last.points, last.level, last.max_level);
   std::printf("per cycle, mean / max ms: input %.3f / %.3f, shape matching %.3f / %.3f, "
               "detection %.3f / %.3f (and ahead of the cycle %.3f / %.3f), response %.3f / %.3f, "
