@@ -3,6 +3,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <mutex>
 #include <new>
@@ -47,7 +48,6 @@ struct MessageBufferPool::State {
   std::vector<Mapping> free;  // reserved for every kept buffer: returning one allocates nothing
   std::size_t kept = 0;
   std::size_t largest_bytes = 0;  // of the messages so far
-  std::size_t kept_bytes = 0;     // of a kept buffer mapped now: largest_bytes and a quarter
   std::size_t transient = 0;
   std::size_t replaced = 0;
   bool pool_alive = true;
@@ -86,22 +86,20 @@ boost::shared_array<std::uint8_t> MessageBufferPool::acquire(std::size_t bytes) 
   {
     std::lock_guard<std::mutex> lock(state_->mutex);
     State& state = *state_;
-    if (bytes > state.largest_bytes) {
-      state.largest_bytes = bytes;
-      state.kept_bytes = bytes + bytes / 4;
-    }
+    state.largest_bytes = std::max(state.largest_bytes, bytes);
+    const std::size_t kept_bytes = state.largest_bytes + state.largest_bytes / 4;
     // Every free buffer too small for the largest message so far grows now, rather than when
     // it is next needed: a later peak of messages in flight finds its buffers resident then.
     for (Mapping& free : state.free) {
       if (free.capacity >= state.largest_bytes) continue;
-      const Mapping larger = mapTouched(state.kept_bytes);
+      const Mapping larger = mapTouched(kept_bytes);
       unmap(free);
       free = larger;
       ++state.replaced;
     }
     if (state.free.empty() && state.kept < state.kept_limit) {
       for (; state.kept < state.kept_limit; ++state.kept) {
-        state.free.push_back(mapTouched(state.kept_bytes));
+        state.free.push_back(mapTouched(kept_bytes));
       }
     }
     if (!state.free.empty()) {
