@@ -3,6 +3,7 @@
 #include "deformable_collision/core/scene.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -75,6 +76,30 @@ Scene::PreparedObject::~PreparedObject() = default;
 Scene::PreparedObject::PreparedObject(PreparedObject&&) noexcept = default;
 Scene::PreparedObject& Scene::PreparedObject::operator=(PreparedObject&&) noexcept = default;
 
+TrackedFitter Scene::PreparedObject::trackedFitter() const {
+  if (empty()) throw std::invalid_argument("trackedFitter: the prepared object is empty");
+  return makeTrackedFitter(*object_);
+}
+
+TrackedFitter Scene::trackedFitter(std::size_t object) const {
+  return makeTrackedFitter(*objects_.at(object));
+}
+
+TrackedFitter Scene::makeTrackedFitter(const Object& object) {
+  if (object.config.kind != ObjectKind::kTracked) {
+    throw std::invalid_argument("object '" + object.config.name + "' is " +
+                                toString(object.config.kind) + ", only tracked objects are fitted");
+  }
+  return TrackedFitter(object.body, object.rest_shape);
+}
+
+std::size_t TrackedFitter::fit(std::vector<Eigen::Vector3d>& points_m, TrackedFit& fit) {
+  const std::size_t unobserved = body_.trackSwapping(points_m);
+  body_.giveTrackedState(fit.state);
+  fit.rest_shape = rest_shape_;
+  return unobserved;
+}
+
 std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vector3d> rest_points_m) {
   // Before the costly part: a name in use fails at once.
   if (findObject(config.name)) {
@@ -134,6 +159,10 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument("object '" + config.name + "': " + e.what());
   }
+  // Numbered for the whole process, not per scene: a fitter of one scene's object cannot
+  // pass for another scene's either. Objects are prepared on several threads.
+  static std::atomic<std::uint64_t> rest_shapes_made{0};
+  made->rest_shape = ++rest_shapes_made;
   if (!made->dynamic()) made->planes.compute(made->body, made->tree, config_.contact_distance_m);
   if (config.kind == ObjectKind::kStatic) {
     // A wall's root sphere spans the room; its points' box is what it really covers.
@@ -190,6 +219,17 @@ std::size_t Scene::observeSwapping(std::size_t object, std::vector<Eigen::Vector
   o.stale = true;
   ++stats_.objects_moved;
   return unobserved;
+}
+
+void Scene::observeFitted(std::size_t object, TrackedFit& fit) {
+  Object& o = trackedObject(object);
+  if (fit.rest_shape != o.rest_shape) {
+    throw std::invalid_argument("object '" + o.config.name +
+                                "' was given a fit to another rest shape than its own");
+  }
+  o.body.takeTrackedState(fit.state);
+  o.stale = true;
+  ++stats_.objects_moved;
 }
 
 Scene::Object& Scene::trackedObject(std::size_t object) {

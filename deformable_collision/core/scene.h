@@ -88,6 +88,42 @@ struct CycleStats {
   std::size_t points_displaced = 0;
 };
 
+/// A tracked object's cloud fitted apart from its scene (TrackedFitter::fit), for
+/// Scene::observeFitted.
+struct TrackedFit {
+  TrackedState state;
+  /// The rest shape it was fitted to: each object a scene makes (added or reset) has a
+  /// number of its own; 0 for none.
+  std::uint64_t rest_shape = 0;
+};
+
+/// Fits a tracked object's clouds on another thread than its scene's: a copy of the object's
+/// body (Scene::PreparedObject::trackedFitter, Scene::trackedFitter), whose fits
+/// Scene::observeFitted takes over without copying the points. Each fit carries on from the
+/// fitter's last one (the clusters' centres as the sums' reference, the rotations as warm
+/// starts), as the object's body would from its own: the object then reaches the state that
+/// observe() of the same clouds would give it, bit for bit, as long as every cloud it takes
+/// goes through the fitter.
+class TrackedFitter {
+ public:
+  /// Fits `points_m` (in the order of the rest shape, non-finite for unobserved points; see
+  /// ShapeMatchingBody::track) into `fit`. A cloud without holes is swapped in, and
+  /// `points_m` then gets a buffer of its size whose content is stale; once `fit` has held
+  /// a fit of this object, nothing is allocated.
+  /// @return the number of unobserved points.
+  /// @throw std::invalid_argument if the size differs; nothing changes then.
+  std::size_t fit(std::vector<Eigen::Vector3d>& points_m, TrackedFit& fit);
+  std::size_t pointCount() const { return body_.pointCount(); }
+
+ private:
+  friend class Scene;
+  TrackedFitter(const ShapeMatchingBody& body, std::uint64_t rest_shape)
+      : body_(body), rest_shape_(rest_shape) {}
+
+  ShapeMatchingBody body_;
+  std::uint64_t rest_shape_;
+};
+
 /// What a cycle cost (ms), as the cycle budget counts it, from the cycle's figures.
 using CycleCostSource = std::function<double(const CycleStats& cycle)>;
 
@@ -118,6 +154,9 @@ class Scene {
     PreparedObject& operator=(PreparedObject&&) noexcept;
 
     bool empty() const { return object_ == nullptr; }
+    /// A fitter of this tracked object's clouds, for once it is added (TrackedFitter).
+    /// @throw std::invalid_argument if it is empty or not a tracked object.
+    TrackedFitter trackedFitter() const;
 
    private:
     friend class Scene;
@@ -167,6 +206,19 @@ class Scene {
   /// gets the object's previous positions (see ShapeMatchingBody::trackSwapping).
   /// @throw std::invalid_argument if the object is not tracked or the size differs.
   std::size_t observeSwapping(std::size_t object, std::vector<Eigen::Vector3d>& points_m);
+
+  /// A fitter of the clouds of tracked object `object` from its state now (TrackedFitter).
+  /// @throw std::invalid_argument if the object is not tracked, std::out_of_range for a bad
+  ///        index.
+  TrackedFitter trackedFitter(std::size_t object) const;
+
+  /// Takes over a cloud of a tracked object fitted by a fitter of it (TrackedFitter::fit):
+  /// O(clusters), the points swapped in; `fit.state.positions` then holds the object's
+  /// former points, a buffer for the fitter's next fit.
+  /// @throw std::invalid_argument if the object is not tracked or `fit` was fitted to
+  ///        another rest shape (another object's, or one this object had before a reset);
+  ///        nothing changes then. std::out_of_range for a bad index.
+  void observeFitted(std::size_t object, TrackedFit& fit);
 
   /// Fits a tracked object's model to an unordered, partial, noisy cloud of it (any size
   /// and order, non-finite points skipped), seen from `viewpoint_m` if known (the camera's
@@ -248,6 +300,8 @@ class Scene {
 
  private:
   /// An object with its hierarchy (and rest planes, if fixed); names the object if it throws.
+  /// A fitter of `object`'s clouds, from its body now.
+  static TrackedFitter makeTrackedFitter(const Object& object);
   std::unique_ptr<Object> makeObject(const ObjectConfig& config,
                                      std::vector<Eigen::Vector3d> rest_points_m) const;
   /// @throw std::out_of_range if there is no such object, std::invalid_argument if it is

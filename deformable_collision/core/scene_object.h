@@ -131,6 +131,9 @@ struct Scene::Object {
   /// Scene-wide number of the last restart of its tree (Scene::restartTree), new for every
   /// object made; numbers only grow, so an object numbered after a detection changed since.
   std::uint64_t revision = 0;
+  /// Process-wide number of its rest shape, new for every object made: a tracked fit
+  /// (TrackedFit::rest_shape) is taken only by the rest shape it was fitted to.
+  std::uint64_t rest_shape = 0;
   /// Box around the object's points, grown by half the contact distance, for the broad
   /// phase: around the root sphere, or, for a static object, its points' own box once.
   Eigen::AlignedBox3d sweep_box;

@@ -219,6 +219,32 @@ std::size_t ShapeMatchingBody::trackSwapping(std::vector<Eigen::Vector3d>& obser
   return unobserved;
 }
 
+void ShapeMatchingBody::takeTrackedState(TrackedState& state) {
+  if (state.positions.size() != positions_.size() || state.sums.size() != clusters_.size() ||
+      state.deformations.size() != clusters_.size()) {
+    throw std::invalid_argument(
+        "tracked state of " + std::to_string(state.positions.size()) + " points and " +
+        std::to_string(state.deformations.size()) + " clusters, the body has " +
+        std::to_string(positions_.size()) + " and " + std::to_string(clusters_.size()));
+  }
+  // As track() does: a waiting move is made before the points are replaced.
+  makeDeferredMove();
+  if (!stopped_) {
+    for (auto& v : velocities_) v.setZero();
+    stopped_ = true;
+  }
+  positions_.swap(state.positions);
+  cluster_sums_ = state.sums;
+  deformations_ = state.deformations;
+}
+
+void ShapeMatchingBody::giveTrackedState(TrackedState& state) {
+  state.positions.resize(positions_.size());
+  positions_.swap(state.positions);
+  state.sums = cluster_sums_;
+  state.deformations = deformations_;
+}
+
 std::size_t ShapeMatchingBody::countUnobserved(
     const std::vector<Eigen::Vector3d>& observed_points) const {
   if (observed_points.size() != positions_.size()) {

@@ -113,6 +113,15 @@ struct ClusterSums {
   Eigen::Matrix3d second_moment = Eigen::Matrix3d::Zero();                  ///< sum w (x - ref)(x - ref)^T
 };
 
+/// What tracking a cloud leaves in a body (ShapeMatchingBody::track): its points and its
+/// clusters' sums and fits; every velocity is zero. Passed from a copy of the body that
+/// fitted the cloud on another thread (TrackedFitter) to the body itself.
+struct TrackedState {
+  std::vector<Eigen::Vector3d> positions;
+  std::vector<ClusterSums> sums;
+  std::vector<ClusterDeformation> deformations;
+};
+
 namespace detail {
 
 /// A whole-object move the points have not made yet (ShapeMatchingBody::deferRigidMove):
@@ -178,6 +187,15 @@ class ShapeMatchingBody {
   /// the next cloud into. A cloud with holes is copied and left as it was.
   /// @throw std::invalid_argument if the size differs; the state is then unchanged.
   std::size_t trackSwapping(std::vector<Eigen::Vector3d>& observed_points);
+
+  /// Takes the state that a copy of this body (the same rest shape and clusters) reached by
+  /// its last track(), as TrackedFitter passes it on: the state this body's own track() of
+  /// that cloud would reach, bit for bit, carrying on from the fit the copy carried on from.
+  /// The points are swapped in, and `state.positions` gets this body's former ones; the
+  /// sums and fits are copied, O(clusters). Velocities become zero.
+  /// @throw std::invalid_argument if the state's point or cluster count differs; the state
+  ///        is then unchanged.
+  void takeTrackedState(TrackedState& state);
 
   /// Places the points (a deformed start, a pose) and sets their velocities to zero. The
   /// per-cluster outputs are refreshed by registering the new positions, as track() does.
@@ -253,6 +271,13 @@ class ShapeMatchingBody {
   const ClusterDeformation& deformation(std::size_t k) const { return deformations_[k]; }
 
  private:
+  friend class TrackedFitter;
+  /// Passes what its last track() left to `state`, for takeTrackedState() of the body it
+  /// copies: the points swapped into `state.positions` (sized to the body first), the sums
+  /// and fits copied. It keeps its fit, from which its next track() carries on, but its
+  /// points are then `state`'s former buffer: only track() may follow, which
+  /// TrackedFitter, the one caller, keeps to.
+  void giveTrackedState(TrackedState& state);
   template <DeformationMode Mode, bool Damped>
   void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);
   template <DeformationMode Mode>

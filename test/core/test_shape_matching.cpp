@@ -967,6 +967,23 @@ TEST(Track, WrongSizeThrowsAndLeavesTheStateAlone) {
   EXPECT_EQ(body.positions(), rest);
 }
 
+TEST(Track, ATrackedStateOfAnotherSizeThrowsAndLeavesBothAlone) {
+  const Points rest = sampleBox(50, {0.3, 0.3, 0.3}, 15);
+  ShapeMatchingBody body(rest, configFor(DeformationMode::kLinear, 2));
+  ShapeMatchingBody other(sampleBox(60, {0.3, 0.3, 0.3}, 16), configFor(DeformationMode::kLinear, 2));
+  TrackedState state;
+  state.positions = other.positions();
+  state.deformations = {other.deformation(0), other.deformation(1)};
+  state.sums.resize(2);
+  EXPECT_THROW(body.takeTrackedState(state), std::invalid_argument);
+  state.positions.resize(rest.size());
+  state.deformations.pop_back();
+  EXPECT_THROW(body.takeTrackedState(state), std::invalid_argument);
+  EXPECT_EQ(body.positions(), rest);
+  EXPECT_EQ(state.positions.size(), rest.size());
+  EXPECT_EQ(state.deformations.size(), 1u);
+}
+
 // ---------------------------------------------------------------------------------------
 // Recovery from absurd but finite input: a cloud with 1% of its points at 1e100 or 1e200 m,
 // a step at 1e30 or 1e200 m/s. The next valid input must give the state a fresh body given
