@@ -26,6 +26,10 @@ struct ReadCloud {
   /// The object made from this cloud (its first, or any with on_cloud: reset) by the reader,
   /// for the cycle to add: its clusters and hierarchy are built off the cycle's thread.
   Scene::PreparedObject prepared;
+  /// A tracked object's cloud as the reader fitted it (TrackedFitter), for the cycle to take
+  /// over (Scene::observeFitted): the fit, too, is made off the cycle's thread.
+  TrackedFit fit;
+  bool fitted = false;  ///< Whether `fit` holds this cloud's fit.
 };
 
 /// The newest read cloud of each object, passed from the thread that reads clouds to the
@@ -45,7 +49,9 @@ class CloudHandoff {
   explicit CloudHandoff(std::vector<bool> starts_cycle);
 
   /// Reader: makes `cloud` object's waiting cloud; `cloud` gets back a buffer to read the
-  /// next one into (its contents are stale).
+  /// next one into (its contents are stale). A cloud replaced before it was taken passes its
+  /// prepared object on to the newer one if that has none: a tracked object's first cloud
+  /// makes the object, and the clouds after it are fits of that object.
   void put(std::size_t object, ReadCloud& cloud);
   /// Whether, since the last takeForCycle(), a cloud of an object that starts cycles came
   /// (waiting, or taken early); with `all`, one of every such object.

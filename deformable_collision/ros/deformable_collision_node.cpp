@@ -228,7 +228,6 @@ void DeformableCollisionNode::forgetAppliedClouds() {
 }
 
 bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
-  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
   if (slot.index && slot.params.on_cloud == OnCloud::kIgnore) return false;
   std::optional<Eigen::Isometry3d> pose;
   if (slot.params.object.kind == ObjectKind::kKinematic) {
@@ -239,38 +238,15 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
     if (!pose) throw std::invalid_argument("the pose of " + slot.params.follow_frame + " is not finite");
   }
   if (!slot.index) {
-    if (tracked) {
-      slot.tracked_indices.clear();
-      for (std::uint32_t i = 0; i < cloud.points.size(); ++i) {
-        if (cloud.points[i].allFinite()) slot.tracked_indices.push_back(i);
-      }
-    }
-    const std::vector<Eigen::Vector3d>& points = tracked ? trackedPoints(slot, cloud.points) : cloud.points;
-    slot.index = scene_.addObject(std::move(cloud.prepared));
-    ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
-             points.size(), slot.subscriber.getTopic().c_str(), toString(slot.params.object.kind));
-    warnIfPorous(slot.params.object.name, points);
-    if (tracked) slot.tracked_cloud_size = cloud.points.size();
-    slot.exists = true;
+    addObject(slot, cloud);
   } else if (slot.params.on_cloud == OnCloud::kReset) {
     scene_.resetRestShape(*slot.index, std::move(cloud.prepared));
   } else if (slot.params.on_cloud == OnCloud::kRegister) {
     registerCloud(slot, cloud);
-  } else {
-    // The reader checks the size once the first cloud is in the scene; one read before
-    // that is checked here.
-    if (cloud.points.size() != slot.tracked_cloud_size) {
-      throw std::invalid_argument(trackedSizeProblem(cloud.points.size(), slot.tracked_cloud_size));
-    }
-    std::vector<Eigen::Vector3d>& points = trackedPoints(slot, cloud.points);
-    if (&points == &cloud.points) {
-      // The cloud's own buffer takes the object's previous points: none is copied again.
-      scene_.observeSwapping(*slot.index, points);
-    } else {
-      // The node's one buffer for reordered clouds stays the node's, at its size.
-      scene_.observe(*slot.index, points);
-    }
   }
+  // A tracked object's clouds after its first are fits the reader made; the first one the
+  // cycle takes may be one of them, bringing the object made from the cloud it replaced.
+  if (cloud.fitted) scene_.observeFitted(*slot.index, cloud.fit);
   if (pose) {
     scene_.setPose(*slot.index, *pose);
     slot.last_pose = *pose;
@@ -279,15 +255,22 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
   return true;
 }
 
-std::vector<Eigen::Vector3d>& DeformableCollisionNode::trackedPoints(
-    const ObjectSlot& slot, std::vector<Eigen::Vector3d>& cloud) {
-  // A first cloud without holes makes every later one the object's points as they are.
-  if (slot.tracked_indices.size() == cloud.size()) return cloud;
-  tracked_points_.resize(slot.tracked_indices.size());
-  for (std::size_t k = 0; k < slot.tracked_indices.size(); ++k) {
-    tracked_points_[k] = cloud[slot.tracked_indices[k]];
+void DeformableCollisionNode::addObject(ObjectSlot& slot, ReadCloud& cloud) {
+  try {
+    slot.index = scene_.addObject(std::move(cloud.prepared));
+  } catch (const std::invalid_argument&) {
+    // The reader fits the clouds after a tracked object's first to that object: without it
+    // in the scene they fit nothing, and the reader must make it again.
+    if (slot.params.on_cloud == OnCloud::kTrack) slot.remake_tracked = true;
+    throw;
   }
-  return tracked_points_;
+  // The rest shape: the cloud's finite points, which the cloud may not hold any more (a later
+  // cloud of a tracked object brings it, its points fitted).
+  const std::vector<Eigen::Vector3d>& points = scene_.body(*slot.index).restPositions();
+  ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
+           points.size(), slot.subscriber.getTopic().c_str(), toString(slot.params.object.kind));
+  warnIfPorous(slot.params.object.name, points);
+  slot.exists = true;
 }
 
 void DeformableCollisionNode::warnIfPorous(const std::string& name,

@@ -36,12 +36,13 @@ namespace deformable_collision {
 /// runs the scene's cycle on a timer or on arriving clouds, and publishes what is
 /// subscribed. Two threads of its own, so that reading a cloud never delays a cycle:
 /// - the reader (reader_queue_, one spinner thread) runs the cloud subscriptions and the
-///   retries of clouds waiting for tf: it converts, transforms and checks each cloud and
-///   hands it to the cycle through handoff_. It alone touches readers_.
+///   retries of clouds waiting for tf: it converts, transforms and checks each cloud, makes
+///   new objects and fits tracked ones to their clouds, and hands each to the cycle through
+///   handoff_. It alone touches readers_.
 /// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles, the
 ///   services and the outputs' connect and disconnect callbacks (CountedPublisher). It
-///   alone touches scene_, the cycle members of slots_ (index, poses, tracked indices,
-///   model, registration, the deformed publisher's count), taken_, markers_, the latency
+///   alone touches scene_, the cycle members of slots_ (index, poses, model, registration,
+///   the deformed publisher's count), taken_, markers_, the latency
 ///   windows, stats_message_ and contacts_message_.
 /// Between them: handoff_ (its own mutex), the atomics of slots_ and of the node (counters,
 /// the wake-up flag), and the drop reports (report_mutex_). tf_buffer_ is thread-safe and
@@ -67,19 +68,17 @@ class DeformableCollisionNode {
     ObjectParams params;
     ros::Subscriber subscriber;
     CountedPublisher deformed;
-    /// Set by the cycle once the object is in the scene, and the cloud size a tracked object
-    /// keeps (its first cloud's; 0 until then), read by the reader to check clouds early.
+    /// Set by the cycle once the object is in the scene.
     std::atomic<bool> exists{false};
-    std::atomic<std::size_t> tracked_cloud_size{0};
+    /// Set by the cycle when it could not add the tracked object the reader made: the reader
+    /// then makes it again from its next cloud.
+    std::atomic<bool> remake_tracked{false};
     /// Guarded by report_mutex_: the last report of a dropped cloud, and the drops since.
     std::optional<Clock::time_point> last_report;
     std::size_t drops_unreported = 0;
     // The cycle's.
     std::optional<std::size_t> index;  ///< In the scene, once a cloud set its rest shape.
     std::optional<Eigen::Isometry3d> last_pose;  ///< Kinematic objects.
-    /// Tracked objects: the cloud indices of the object's points (the first cloud's finite
-    /// ones).
-    std::vector<std::uint32_t> tracked_indices;
     bool float64 = false;  ///< ~deformed/<object> in FLOAT64, like the last cloud.
     /// on_cloud register: model_file's points in model_frame until tf places them, the last
     /// cloud's registration, and the clouds held since start and since the last report.
@@ -96,6 +95,13 @@ class DeformableCollisionNode {
     /// Clouds whose transform was not there yet, oldest first, retried in that order on
     /// the retry timer and on each new cloud, each until tf_wait_s after its arrival.
     std::deque<AwaitingCloud> awaiting_transform;
+    /// on_cloud track, once the reader has made the object from its first cloud: the
+    /// object's fitter, that cloud's size and the indices of its finite points (the
+    /// object's points), and a buffer for later clouds taken down to those points.
+    std::optional<TrackedFitter> fitter;
+    std::size_t tracked_cloud_size = 0;
+    std::vector<std::uint32_t> tracked_indices;
+    std::vector<Eigen::Vector3d> tracked_points;
   };
 
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
@@ -122,9 +128,16 @@ class DeformableCollisionNode {
   CloudOutcome handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
                            Clock::time_point arrival, bool last_try);
   /// Reads the cloud into `points`; its error also says why the object cannot take it
-  /// (empty, or a tracked object's cloud of another size).
+  /// (empty, or a tracked object's cloud of another size than `tracked_size`, its first's,
+  /// or 0 before that).
   CloudReadResult readObjectCloud(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
+                                  std::size_t tracked_size,
                                   std::vector<Eigen::Vector3d>& points) const;
+  /// A tracked object's first cloud, made into the object in `read.prepared`: the reader
+  /// then fits the clouds after it.
+  static void startTracking(CloudReader& reader, ReadCloud& read);
+  /// Fits a tracked object's cloud into `read.fit`, for the cycle to take over.
+  static void fitTrackedCloud(CloudReader& reader, ReadCloud& read);
   /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
   /// it never will (no frame, an unknown frame once tf has filled, not finite).
   TransformOutcome transformPoints(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
@@ -140,10 +153,8 @@ class DeformableCollisionNode {
   void forgetAppliedClouds();
   /// Whether the cloud changed the object (an ignored object's is left alone).
   bool applyCloud(ObjectSlot& slot, ReadCloud& cloud);
-  /// The points of a tracked object's cloud, in the order of its rest shape: `cloud`
-  /// itself, or a buffer of the node's when the first cloud had holes.
-  std::vector<Eigen::Vector3d>& trackedPoints(const ObjectSlot& slot,
-                                              std::vector<Eigen::Vector3d>& cloud);
+  /// Puts the object the reader made from a cloud into the scene.
+  void addObject(ObjectSlot& slot, ReadCloud& cloud);
   /// Why a tracked object refuses a cloud of `points` points.
   static std::string trackedSizeProblem(std::size_t points, std::size_t first_points);
   /// Points far apart compared with the contact distance let other clouds through: say so.
@@ -251,7 +262,6 @@ class DeformableCollisionNode {
   const Clock::duration cycle_period_;  ///< 1 / rate_hz
   Clock::duration cycle_wait_;
   HierarchyMarkers markers_;
-  std::vector<Eigen::Vector3d> tracked_points_;
   std::vector<SceneContact> query_contacts_;
   /// The services' view of slots_: names point into slots_[i].params, which never moves.
   std::vector<NamedObject> named_objects_;

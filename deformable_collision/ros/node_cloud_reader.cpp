@@ -118,6 +118,7 @@ void DeformableCollisionNode::dropCloud(ObjectSlot& slot, ros::console::levels::
 
 CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
                                                         const sensor_msgs::PointCloud2& cloud,
+                                                        std::size_t tracked_size,
                                                         std::vector<Eigen::Vector3d>& points) const {
   // A tracked object keeps non-finite points as unobserved slots, so that point i of every
   // cloud is the same point even when the first cloud has holes (organized depth clouds).
@@ -128,7 +129,6 @@ CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
   if (!read.ok()) return read;
   // A registered object's view may miss it: the registration holds the model and says so.
   const bool registered = slot.params.on_cloud == OnCloud::kRegister && slot.exists;
-  const std::size_t tracked_size = slot.tracked_cloud_size;
   if (points.empty() && !registered) {
     read.error = "the cloud is empty";
   } else if (tracked && tracked_size != 0 && points.size() != tracked_size) {
@@ -147,7 +147,12 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     const sensor_msgs::PointCloud2& cloud, std::size_t index, Clock::time_point arrival,
     bool last_try) {
   ObjectSlot& slot = slots_[index];
-  const bool exists = slot.exists;
+  CloudReader& reader = readers_[index];
+  // A tracked object exists for the reader once it has made it: the clouds after the first
+  // are fits of that object, which the first cloud brings into the scene (CloudHandoff::put).
+  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
+  if (tracked && slot.remake_tracked.exchange(false)) reader.fitter.reset();
+  const bool exists = tracked ? reader.fitter.has_value() : slot.exists.load();
   if (!exists && !slot.params.model_file.empty()) {
     // The cycle places the model once tf has model_frame; until then its clouds wait.
     if (!last_try) return CloudOutcome::kAwaitingTransform;
@@ -162,8 +167,9 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     dropCloud(slot, ros::console::levels::Error, problem);
     return CloudOutcome::kRejected;
   };
-  ReadCloud& read = readers_[index].cloud;
-  const CloudReadResult result = readObjectCloud(slot, cloud, read.points);
+  ReadCloud& read = reader.cloud;
+  const CloudReadResult result =
+      readObjectCloud(slot, cloud, exists ? reader.tracked_cloud_size : 0, read.points);
   if (!result.ok()) return reject(result.error);
   std::string problem;
   switch (transformPoints(slot, cloud, last_try, read, problem)) {
@@ -185,13 +191,16 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
       !tf_buffer_.canTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))) {
     return CloudOutcome::kAwaitingTransform;
   }
-  if (slot.params.on_cloud == OnCloud::kTrack && !exists &&
+  if (tracked && !exists &&
       std::none_of(read.points.begin(), read.points.end(),
                    [](const Eigen::Vector3d& p) { return p.allFinite(); })) {
     return reject("every point is non-finite");
   }
   read.prepared = Scene::PreparedObject();
-  if (!exists || slot.params.on_cloud == OnCloud::kReset) {
+  read.fitted = false;
+  if (tracked && exists) {
+    fitTrackedCloud(reader, read);
+  } else if (!exists || slot.params.on_cloud == OnCloud::kReset) {
     // A new shape's clusters and hierarchy (tens of milliseconds for thousands of points) are
     // built here, off the cycle's thread, which then only puts the object in the scene. The
     // rest shape is the cloud's finite points (a tracked cloud keeps its holes as NaN).
@@ -200,6 +209,7 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     std::copy_if(read.points.begin(), read.points.end(), std::back_inserter(rest_shape),
                  [](const Eigen::Vector3d& p) { return p.allFinite(); });
     read.prepared = scene_.prepareObject(slot.params.object, std::move(rest_shape));
+    if (tracked) startTracking(reader, read);
   }
   non_finite_points_ += result.non_finite;
   read.stamp = cloud.header.stamp;
@@ -207,6 +217,29 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
   read.float64 = result.datatype == sensor_msgs::PointField::FLOAT64;
   handOver(index, read);
   return CloudOutcome::kApplied;
+}
+
+void DeformableCollisionNode::startTracking(CloudReader& reader, ReadCloud& read) {
+  reader.fitter = read.prepared.trackedFitter();
+  reader.tracked_cloud_size = read.points.size();
+  reader.tracked_indices.clear();
+  for (std::uint32_t i = 0; i < read.points.size(); ++i) {
+    if (read.points[i].allFinite()) reader.tracked_indices.push_back(i);
+  }
+}
+
+void DeformableCollisionNode::fitTrackedCloud(CloudReader& reader, ReadCloud& read) {
+  // A first cloud without holes makes every later one the object's points as they are.
+  if (reader.tracked_indices.size() == read.points.size()) {
+    reader.fitter->fit(read.points, read.fit);
+  } else {
+    reader.tracked_points.resize(reader.tracked_indices.size());
+    for (std::size_t k = 0; k < reader.tracked_indices.size(); ++k) {
+      reader.tracked_points[k] = read.points[reader.tracked_indices[k]];
+    }
+    reader.fitter->fit(reader.tracked_points, read.fit);
+  }
+  read.fitted = true;
 }
 
 DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoints(

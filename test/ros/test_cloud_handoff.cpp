@@ -187,10 +187,11 @@ TEST(CloudHandoff, ThreeBuffersCirculateOnceGrown) {
   EXPECT_LE(buffers.size(), 3u);
 }
 
-// The reader thread converts clouds and hands them over while the cycle thread takes them,
-// early and for its cycles, and runs the scene's cycle on them, as the node does; it also
-// prepares, while the cycle runs, a second object that the cycle adds and then gives new
-// rest shapes to. Under ThreadSanitizer (the thread build of test/sanitized) any
+// The reader thread converts clouds, fits them and hands them over while the cycle thread
+// takes them, early and for its cycles, and runs the scene's cycle on them, as the node does:
+// the reader makes the tracked object from its first cloud and fits every later one, and it
+// also prepares, while the cycle runs, a second object that the cycle adds and then gives
+// new rest shapes to. Under ThreadSanitizer (the thread build of test/sanitized) any
 // unsynchronised access between the two is reported.
 TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   constexpr int kClouds = 300;
@@ -202,7 +203,6 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   ObjectConfig tracked;
   tracked.name = "tracked";
   tracked.kind = ObjectKind::kTracked;
-  const std::size_t object = scene.addObject(tracked, shape);
   ObjectConfig reshaped;
   reshaped.name = "reshaped";
   reshaped.kind = ObjectKind::kStatic;
@@ -214,11 +214,21 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
     ReadCloud shape_read;
     sensor_msgs::PointCloud2 message;
     Points moved = shape;
+    std::optional<TrackedFitter> fitter;
     for (int sequence = 1; sequence <= kClouds; ++sequence) {
       for (std::size_t i = 0; i < shape.size(); ++i) moved[i] = shape[i] + Eigen::Vector3d(1e-4 * sequence, 0, 0);
       writeCloudPoints(moved, message, sensor_msgs::PointField::FLOAT64);
       if (!readCloudPoints(message, NonFinitePoints::kKeepAsNaN, 1000, read.points).ok()) {
         ADD_FAILURE() << "cloud " << sequence << " not read";
+      }
+      read.prepared = Scene::PreparedObject();
+      read.fitted = false;
+      if (fitter) {
+        fitter->fit(read.points, read.fit);
+        read.fitted = true;
+      } else {
+        read.prepared = scene.prepareObject(tracked, read.points);
+        fitter = read.prepared.trackedFitter();
       }
       read.stamp = ros::Time(sequence);
       handoff.put(0, read);
@@ -241,6 +251,7 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   int superseded = 0;  // applied early, then replaced before a cycle used it
   bool pending = false;
   double last_stamp = 0.0;
+  std::optional<std::size_t> tracked_index;
   std::optional<std::size_t> reshaped_index;
   std::size_t last_shape_points = 0;
   int shapes_applied = 0;
@@ -259,7 +270,10 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
       }
       EXPECT_GT(cloud.stamp.toSec(), last_stamp) << "clouds come newest last";
       last_stamp = cloud.stamp.toSec();
-      scene.observe(object, cloud.points);
+      // The first cloud taken carries the object, made from the first cloud read.
+      ASSERT_EQ(tracked_index.has_value(), cloud.prepared.empty());
+      if (!tracked_index) tracked_index = scene.addObject(std::move(cloud.prepared));
+      if (cloud.fitted) scene.observeFitted(*tracked_index, cloud.fit);
       superseded += pending;
       pending = true;
     }
@@ -286,10 +300,45 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
   EXPECT_EQ(last_stamp, kClouds) << "the newest cloud is always taken";
   EXPECT_EQ(cycles + superseded + shapes_applied + handoff.coalesced(),
             static_cast<std::uint64_t>(kClouds + kClouds / kCloudsPerShape));
-  EXPECT_NEAR(scene.body(object).positions()[0].x(), shape[0].x() + 1e-4 * kClouds, 1e-9);
+  ASSERT_TRUE(tracked_index.has_value());
+  EXPECT_NEAR(scene.body(*tracked_index).positions()[0].x(), shape[0].x() + 1e-4 * kClouds, 1e-9);
   ASSERT_TRUE(reshaped_index.has_value());
   EXPECT_EQ(last_shape_points, 50u + kClouds / kCloudsPerShape);
   EXPECT_EQ(scene.body(*reshaped_index).positions().size(), last_shape_points);
+}
+
+// A tracked object's first cloud makes it; a cloud that replaces the first before the cycle
+// took it is a fit of that object, and must bring the object along.
+TEST(CloudHandoff, AReplacedCloudPassesItsPreparedObjectToANewerOneWithout) {
+  Scene scene(SceneConfig{});
+  ObjectConfig tracked;
+  tracked.name = "tracked";
+  tracked.kind = ObjectKind::kTracked;
+  CloudHandoff handoff({true});
+  ReadCloud first = numbered(4, 1.0);
+  first.prepared = scene.prepareObject(tracked, sampleBox(50, Eigen::Vector3d(0.1, 0.1, 0.1), 1));
+  handoff.put(0, first);
+  ReadCloud second = numbered(4, 2.0);
+  handoff.put(0, second);
+  EXPECT_TRUE(second.prepared.empty()) << "the replaced first cloud gave its object on";
+  std::vector<ReadCloud> taken(1);
+  std::vector<std::size_t> objects;
+  handoff.takeForCycle(taken, objects);
+  EXPECT_EQ(taken[0].points[0].x(), 2.0);
+  ASSERT_FALSE(taken[0].prepared.empty());
+  EXPECT_EQ(taken[0].prepared.trackedFitter().pointCount(), 50u);
+
+  // A newer cloud with an object of its own keeps it; the older one comes back with its own.
+  ReadCloud reset_first = numbered(4, 3.0);
+  reset_first.prepared = scene.prepareObject(tracked, sampleBox(60, Eigen::Vector3d(0.1, 0.1, 0.1), 2));
+  handoff.put(0, reset_first);
+  ReadCloud reset_second = numbered(4, 4.0);
+  reset_second.prepared = scene.prepareObject(tracked, sampleBox(70, Eigen::Vector3d(0.1, 0.1, 0.1), 3));
+  handoff.put(0, reset_second);
+  handoff.takeForCycle(taken, objects);
+  EXPECT_EQ(taken[0].prepared.trackedFitter().pointCount(), 70u);
+  ASSERT_FALSE(reset_second.prepared.empty());
+  EXPECT_EQ(reset_second.prepared.trackedFitter().pointCount(), 60u);
 }
 
 }  // namespace
