@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <new>
 #include <random>
@@ -164,6 +166,48 @@ TEST(Scene, SteadyStateRegistrationsAllocateNothing) {
   counting = false;
   EXPECT_EQ(allocations.load(), 0);
   EXPECT_EQ(held_clouds, 0) << "every cloud shows the box: each must be registered";
+}
+
+// A tracked box whose clouds, some with holes, a fitter fits apart and the scene takes over,
+// as the node's reader and cycle do: after the first clouds the fits, the takes and the
+// cycles allocate nothing.
+TEST(Scene, SteadyStateFittedCloudsAllocateNothing) {
+  Scene scene(SceneConfig{});
+  ObjectConfig box;
+  box.name = "box";
+  box.kind = ObjectKind::kTracked;
+  box.shape.mode = DeformationMode::kQuadratic;
+  box.shape.clusters = 3;
+  const auto rest = sampleBox(1000, {0.05, 0.04, 0.03}, 8);
+  Scene::PreparedObject prepared = scene.prepareObject(box, rest);
+  TrackedFitter fitter = prepared.trackedFitter();
+  const std::size_t object = scene.addObject(std::move(prepared));
+  std::vector<std::vector<Eigen::Vector3d>> clouds;
+  for (int frame = 0; frame < 30; ++frame) {
+    const Eigen::Isometry3d motion = Eigen::Translation3d(0.002 * frame, 0.0, 0.001 * frame) *
+                                     Eigen::AngleAxisd(0.01 * frame, Eigen::Vector3d::UnitZ());
+    std::vector<Eigen::Vector3d> cloud;
+    for (const auto& p : rest) cloud.push_back(motion * p);
+    if (frame % 2 == 1) {
+      for (std::size_t i = frame; i < cloud.size(); i += 13) cloud[i].z() = std::nan("");
+    }
+    clouds.push_back(std::move(cloud));
+  }
+  TrackedFit fit;
+  std::vector<Eigen::Vector3d> read(rest.size());
+  const auto fit_and_cycle = [&](int frame) {
+    std::copy(clouds[frame].begin(), clouds[frame].end(), read.begin());
+    fitter.fit(read, fit);
+    scene.observeFitted(object, fit);
+    scene.cycle();
+  };
+  for (int frame = 0; frame < 10; ++frame) fit_and_cycle(frame);
+  allocations = 0;
+  counting = true;
+  for (int frame = 10; frame < 30; ++frame) fit_and_cycle(frame);
+  counting = false;
+  EXPECT_EQ(allocations.load(), 0);
+  EXPECT_NEAR(scene.body(object).positions()[0].x(), (clouds[29][0]).x(), 1e-9);
 }
 
 }  // namespace
