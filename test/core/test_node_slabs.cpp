@@ -111,7 +111,9 @@ TEST(NodeSlabs, NeverCallAPairApartThatComesWithinReach) {
     slabs.compute(tree, body.positions());
     const std::size_t apart = checkNeverWronglyApart(tree, body.positions(), slabs, shape.scale_m);
     // The trials are not all within reach: the slabs rule some out (the test has teeth).
-    if (shape.name != "coincident") EXPECT_GT(apart, 0u);
+    if (shape.name != "coincident") {
+      EXPECT_GT(apart, 0u);
+    }
   }
 }
 
@@ -145,7 +147,9 @@ TEST(NodeSlabs, FollowAPoseWithoutVisitingThePoints) {
       // A shear widens each slab by its turn's error times the points' norm: 1e5 m from the
       // origin, wider than anything the trials place around a node.
       const bool widened_away = std::string(name) == "sheared" && shape.name == "far_from_origin";
-      if (shape.name != "coincident" && !widened_away) EXPECT_GT(apart, 0u);
+      if (shape.name != "coincident" && !widened_away) {
+        EXPECT_GT(apart, 0u);
+      }
     }
   }
 }
