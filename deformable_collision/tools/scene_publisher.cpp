@@ -4,12 +4,17 @@
 // instead (camera_gripper_publisher.h). With ~simulate the scene is stepped and every cloud
 // shows the current points (for objects the node tracks); otherwise the points as they are
 // after ~settle_s seconds of simulation (0: the rest shapes).
+#include <dirent.h>
+#include <netinet/in.h>
 #include <ros/ros.h>
+#include <ros/xmlrpc_manager.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <sys/socket.h>
 #include <tf2_ros/transform_broadcaster.h>
 
 #include <boost/make_shared.hpp>
 #include <cmath>
+#include <cstdlib>
 #include <optional>
 #include <string>
 #include <vector>
@@ -62,6 +67,37 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
   return params;
 }
 
+/// roscpp's XML-RPC server (xmlrpcpp's) listens with a backlog of 5. A node that subscribes to
+/// hundreds of this publisher's topics (the load test's 300) asks for them all at once; the
+/// kernel drops the connections beyond the backlog, and TCP tries them again after 1, 3, 7,
+/// 15 and 31 s, so that some of the node's objects came half a minute late. Linux lets a
+/// listening socket listen again, which only sets its backlog: the server's socket is found
+/// by its port among the process's descriptors.
+void lengthenXmlRpcBacklog() {
+  const auto port = static_cast<std::uint16_t>(ros::XMLRPCManager::instance()->getServerPort());
+  DIR* descriptors = opendir("/proc/self/fd");
+  if (descriptors == nullptr) return;
+  while (const dirent* entry = readdir(descriptors)) {
+    const int fd = std::atoi(entry->d_name);
+    sockaddr_storage address{};
+    socklen_t length = sizeof(address);
+    int listening = 0;
+    socklen_t flag_length = sizeof(listening);
+    if (fd <= 2 || getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0 ||
+        getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &listening, &flag_length) != 0 || !listening) {
+      continue;
+    }
+    const std::uint16_t bound =
+        address.ss_family == AF_INET ? ntohs(reinterpret_cast<sockaddr_in*>(&address)->sin_port)
+        : address.ss_family == AF_INET6 ? ntohs(reinterpret_cast<sockaddr_in6*>(&address)->sin6_port)
+                                        : 0;
+    if (bound == port && listen(fd, SOMAXCONN) != 0) {
+      ROS_WARN("scene_publisher: the XML-RPC server keeps its backlog of 5");
+    }
+  }
+  closedir(descriptors);
+}
+
 /// One round of output: the frames of the kinematic objects, and each subscribed object's
 /// cloud.
 void publishScene(const PublisherParams& params, const deformable_collision::Scene& scene,
@@ -91,6 +127,7 @@ void publishScene(const PublisherParams& params, const deformable_collision::Sce
 int main(int argc, char** argv) {
   ros::init(argc, argv, "scene_publisher");
   ros::NodeHandle node_handle;
+  lengthenXmlRpcBacklog();
   const ros::NodeHandle private_handle("~");
   const std::string scene_name = private_handle.param<std::string>("scene", "");
   if (scene_name == deformable_collision::kCameraGripperSceneName) {
