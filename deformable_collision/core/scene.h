@@ -299,9 +299,9 @@ class Scene {
   const Sphere& currentSphere(std::size_t object, std::uint32_t node);
 
  private:
-  /// An object with its hierarchy (and rest planes, if fixed); names the object if it throws.
   /// A fitter of `object`'s clouds, from its body now.
   static TrackedFitter makeTrackedFitter(const Object& object);
+  /// An object with its hierarchy (and rest planes, if fixed); names the object if it throws.
   std::unique_ptr<Object> makeObject(const ObjectConfig& config,
                                      std::vector<Eigen::Vector3d> rest_points_m) const;
   /// @throw std::out_of_range if there is no such object, std::invalid_argument if it is
