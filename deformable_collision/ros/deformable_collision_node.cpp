@@ -256,14 +256,7 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
 }
 
 void DeformableCollisionNode::addObject(ObjectSlot& slot, ReadCloud& cloud) {
-  try {
-    slot.index = scene_.addObject(std::move(cloud.prepared));
-  } catch (const std::invalid_argument&) {
-    // The reader fits the clouds after a tracked object's first to that object: without it
-    // in the scene they fit nothing, and the reader must make it again.
-    if (slot.params.on_cloud == OnCloud::kTrack) slot.remake_tracked = true;
-    throw;
-  }
+  slot.index = scene_.addObject(std::move(cloud.prepared));
   // The rest shape: the cloud's finite points, which the cloud may not hold any more (a later
   // cloud of a tracked object brings it, its points fitted).
   const std::vector<Eigen::Vector3d>& points = scene_.body(*slot.index).restPositions();

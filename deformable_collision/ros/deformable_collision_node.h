@@ -70,9 +70,6 @@ class DeformableCollisionNode {
     CountedPublisher deformed;
     /// Set by the cycle once the object is in the scene.
     std::atomic<bool> exists{false};
-    /// Set by the cycle when it could not add the tracked object the reader made: the reader
-    /// then makes it again from its next cloud.
-    std::atomic<bool> remake_tracked{false};
     /// Guarded by report_mutex_: the last report of a dropped cloud, and the drops since.
     std::optional<Clock::time_point> last_report;
     std::size_t drops_unreported = 0;

@@ -151,7 +151,6 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
   // A tracked object exists for the reader once it has made it: the clouds after the first
   // are fits of that object, which the first cloud brings into the scene (CloudHandoff::put).
   const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
-  if (tracked && slot.remake_tracked.exchange(false)) reader.fitter.reset();
   const bool exists = tracked ? reader.fitter.has_value() : slot.exists.load();
   if (!exists && !slot.params.model_file.empty()) {
     // The cycle places the model once tf has model_frame; until then its clouds wait.
