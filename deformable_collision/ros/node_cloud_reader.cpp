@@ -168,7 +168,7 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
   };
   ReadCloud& read = reader.cloud;
   const CloudReadResult result =
-      readObjectCloud(slot, cloud, exists ? reader.tracked_cloud_size : 0, read.points);
+      readObjectCloud(slot, cloud, reader.tracked_cloud_size, read.points);
   if (!result.ok()) return reject(result.error);
   std::string problem;
   switch (transformPoints(slot, cloud, last_try, read, problem)) {

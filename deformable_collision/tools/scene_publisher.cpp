@@ -75,9 +75,11 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
 /// by its port among the process's descriptors.
 void lengthenXmlRpcBacklog() {
   const auto port = static_cast<std::uint16_t>(ros::XMLRPCManager::instance()->getServerPort());
+  bool lengthened = false;
   DIR* descriptors = opendir("/proc/self/fd");
-  if (descriptors == nullptr) return;
-  while (const dirent* entry = readdir(descriptors)) {
+  while (descriptors != nullptr && !lengthened) {
+    const dirent* entry = readdir(descriptors);
+    if (entry == nullptr) break;
     const int fd = std::atoi(entry->d_name);
     sockaddr_storage address{};
     socklen_t length = sizeof(address);
@@ -91,11 +93,13 @@ void lengthenXmlRpcBacklog() {
         address.ss_family == AF_INET ? ntohs(reinterpret_cast<sockaddr_in*>(&address)->sin_port)
         : address.ss_family == AF_INET6 ? ntohs(reinterpret_cast<sockaddr_in6*>(&address)->sin6_port)
                                         : 0;
-    if (bound == port && listen(fd, SOMAXCONN) != 0) {
-      ROS_WARN("scene_publisher: the XML-RPC server keeps its backlog of 5");
-    }
+    lengthened = bound == port && listen(fd, SOMAXCONN) == 0;
   }
-  closedir(descriptors);
+  if (descriptors != nullptr) closedir(descriptors);
+  if (!lengthened) {
+    ROS_WARN("scene_publisher: its XML-RPC server keeps a backlog of 5: a node that subscribes "
+             "to many of its topics at once may be connected to some only seconds later");
+  }
 }
 
 /// One round of output: the frames of the kinematic objects, and each subscribed object's

@@ -63,6 +63,16 @@ void* realloc(void* p, std::size_t size) {
 namespace deformable_collision {
 namespace {
 
+/// A tracked box of `mode` in `clusters` clusters.
+ObjectConfig trackedBox(DeformationMode mode, int clusters) {
+  ObjectConfig box;
+  box.name = "box";
+  box.kind = ObjectKind::kTracked;
+  box.shape.mode = mode;
+  box.shape.clusters = clusters;
+  return box;
+}
+
 /// The gripper scene, driven cycle by cycle.
 struct DrivenGripper {
   std::unique_ptr<Scene> scene = makeDemoScene(DemoScene::kGripper, 3000);
@@ -132,13 +142,8 @@ TEST(Scene, SteadyCyclesInBudgetModeAllocateNothing) {
 // the kd-tree's rebuilds, the fits) and the cycle after it allocate nothing.
 TEST(Scene, SteadyStateRegistrationsAllocateNothing) {
   Scene scene(SceneConfig{});
-  ObjectConfig box;
-  box.name = "box";
-  box.kind = ObjectKind::kTracked;
-  box.shape.mode = DeformationMode::kLinear;
-  box.shape.clusters = 4;
   const auto rest = sampleBox(2000, {0.05, 0.04, 0.03}, 7);
-  const std::size_t object = scene.addObject(box, rest);
+  const std::size_t object = scene.addObject(trackedBox(DeformationMode::kLinear, 4), rest);
   std::mt19937 random(11);
   std::normal_distribution<double> noise(0.0, 0.001);
   std::vector<std::vector<Eigen::Vector3d>> clouds;
@@ -173,13 +178,9 @@ TEST(Scene, SteadyStateRegistrationsAllocateNothing) {
 // cycles allocate nothing.
 TEST(Scene, SteadyStateFittedCloudsAllocateNothing) {
   Scene scene(SceneConfig{});
-  ObjectConfig box;
-  box.name = "box";
-  box.kind = ObjectKind::kTracked;
-  box.shape.mode = DeformationMode::kQuadratic;
-  box.shape.clusters = 3;
   const auto rest = sampleBox(1000, {0.05, 0.04, 0.03}, 8);
-  Scene::PreparedObject prepared = scene.prepareObject(box, rest);
+  Scene::PreparedObject prepared =
+      scene.prepareObject(trackedBox(DeformationMode::kQuadratic, 3), rest);
   TrackedFitter fitter = prepared.trackedFitter();
   const std::size_t object = scene.addObject(std::move(prepared));
   std::vector<std::vector<Eigen::Vector3d>> clouds;
