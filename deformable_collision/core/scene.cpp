@@ -94,8 +94,9 @@ TrackedFitter Scene::makeTrackedFitter(const Object& object) {
 }
 
 std::size_t TrackedFitter::fit(std::vector<Eigen::Vector3d>& points_m, TrackedFit& fit) {
+  // The cloud goes into the body to be fitted and comes back: the body keeps its own buffer.
   const std::size_t unobserved = body_.trackSwapping(points_m);
-  body_.giveTrackedState(fit.state);
+  body_.giveTrackedState(points_m, fit.state);
   fit.rest_shape = rest_shape_;
   return unobserved;
 }
@@ -221,13 +222,14 @@ std::size_t Scene::observeSwapping(std::size_t object, std::vector<Eigen::Vector
   return unobserved;
 }
 
-void Scene::observeFitted(std::size_t object, TrackedFit& fit) {
+void Scene::observeFitted(std::size_t object, std::vector<Eigen::Vector3d>& points_m,
+                          const TrackedFit& fit) {
   Object& o = trackedObject(object);
   if (fit.rest_shape != o.rest_shape) {
     throw std::invalid_argument("object '" + o.config.name +
                                 "' was given a fit to another rest shape than its own");
   }
-  o.body.takeTrackedState(fit.state);
+  o.body.takeTrackedState(points_m, fit.state);
   o.stale = true;
   ++stats_.objects_moved;
 }

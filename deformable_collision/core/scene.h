@@ -88,8 +88,8 @@ struct CycleStats {
   std::size_t points_displaced = 0;
 };
 
-/// A tracked object's cloud fitted apart from its scene (TrackedFitter::fit), for
-/// Scene::observeFitted.
+/// The fit of a tracked object's cloud made apart from its scene (TrackedFitter::fit), for
+/// Scene::observeFitted; the fitted points stay in the cloud's buffer.
 struct TrackedFit {
   TrackedState state;
   /// The rest shape it was fitted to: each object a scene makes (added or reset) has a
@@ -107,9 +107,10 @@ struct TrackedFit {
 class TrackedFitter {
  public:
   /// Fits `points_m` (in the order of the rest shape, non-finite for unobserved points; see
-  /// ShapeMatchingBody::track) into `fit`. A cloud without holes is swapped in, and
-  /// `points_m` then gets a buffer of its size whose content is stale; once `fit` has held
-  /// a fit of this object, nothing is allocated.
+  /// ShapeMatchingBody::track): `fit` gets the clusters' sums and fits, and `points_m` the
+  /// fitted points (the cloud's, its holes filled in) in the same buffer, to hand to
+  /// Scene::observeFitted with `fit`. Copies no point of a cloud without holes; once `fit`
+  /// has held a fit of this object, nothing is allocated.
   /// @return the number of unobserved points.
   /// @throw std::invalid_argument if the size differs; nothing changes then.
   std::size_t fit(std::vector<Eigen::Vector3d>& points_m, TrackedFit& fit);
@@ -212,13 +213,15 @@ class Scene {
   ///        index.
   TrackedFitter trackedFitter(std::size_t object) const;
 
-  /// Takes over a cloud of a tracked object fitted by a fitter of it (TrackedFitter::fit):
-  /// O(clusters), the points swapped in; `fit.state.positions` then holds the object's
-  /// former points, a buffer for the fitter's next fit.
-  /// @throw std::invalid_argument if the object is not tracked or `fit` was fitted to
-  ///        another rest shape (another object's, or one this object had before a reset);
-  ///        nothing changes then. std::out_of_range for a bad index.
-  void observeFitted(std::size_t object, TrackedFit& fit);
+  /// Takes over a cloud of a tracked object fitted by a fitter of it (TrackedFitter::fit),
+  /// its fitted points in `points_m`: O(clusters), the points swapped in; `points_m` then
+  /// holds the object's former points, a buffer to read the next cloud into.
+  /// @throw std::invalid_argument if the object is not tracked, `fit` was fitted to
+  ///        another rest shape (another object's, or one this object had before a reset) or
+  ///        `points_m` is not of the object's size; nothing changes then.
+  ///        std::out_of_range for a bad index.
+  void observeFitted(std::size_t object, std::vector<Eigen::Vector3d>& points_m,
+                     const TrackedFit& fit);
 
   /// Fits a tracked object's model to an unordered, partial, noisy cloud of it (any size
   /// and order, non-finite points skipped), seen from `viewpoint_m` if known (the camera's

@@ -219,11 +219,12 @@ std::size_t ShapeMatchingBody::trackSwapping(std::vector<Eigen::Vector3d>& obser
   return unobserved;
 }
 
-void ShapeMatchingBody::takeTrackedState(TrackedState& state) {
-  if (state.positions.size() != positions_.size() || state.sums.size() != clusters_.size() ||
+void ShapeMatchingBody::takeTrackedState(std::vector<Eigen::Vector3d>& positions,
+                                         const TrackedState& state) {
+  if (positions.size() != positions_.size() || state.sums.size() != clusters_.size() ||
       state.deformations.size() != clusters_.size()) {
     throw std::invalid_argument(
-        "tracked state of " + std::to_string(state.positions.size()) + " points and " +
+        "tracked state of " + std::to_string(positions.size()) + " points and " +
         std::to_string(state.deformations.size()) + " clusters, the body has " +
         std::to_string(positions_.size()) + " and " + std::to_string(clusters_.size()));
   }
@@ -233,14 +234,14 @@ void ShapeMatchingBody::takeTrackedState(TrackedState& state) {
     for (auto& v : velocities_) v.setZero();
     stopped_ = true;
   }
-  positions_.swap(state.positions);
+  positions_.swap(positions);
   cluster_sums_ = state.sums;
   deformations_ = state.deformations;
 }
 
-void ShapeMatchingBody::giveTrackedState(TrackedState& state) {
-  state.positions.resize(positions_.size());
-  positions_.swap(state.positions);
+void ShapeMatchingBody::giveTrackedState(std::vector<Eigen::Vector3d>& positions,
+                                         TrackedState& state) {
+  positions_.swap(positions);
   state.sums = cluster_sums_;
   state.deformations = deformations_;
 }

@@ -113,11 +113,11 @@ struct ClusterSums {
   Eigen::Matrix3d second_moment = Eigen::Matrix3d::Zero();                  ///< sum w (x - ref)(x - ref)^T
 };
 
-/// What tracking a cloud leaves in a body (ShapeMatchingBody::track): its points and its
+/// What tracking a cloud leaves in a body (ShapeMatchingBody::track) besides its points: its
 /// clusters' sums and fits; every velocity is zero. Passed from a copy of the body that
-/// fitted the cloud on another thread (TrackedFitter) to the body itself.
+/// fitted the cloud on another thread (TrackedFitter) to the body itself, the points beside
+/// it in a buffer of their own.
 struct TrackedState {
-  std::vector<Eigen::Vector3d> positions;
   std::vector<ClusterSums> sums;
   std::vector<ClusterDeformation> deformations;
 };
@@ -188,14 +188,14 @@ class ShapeMatchingBody {
   /// @throw std::invalid_argument if the size differs; the state is then unchanged.
   std::size_t trackSwapping(std::vector<Eigen::Vector3d>& observed_points);
 
-  /// Takes the state that a copy of this body (the same rest shape and clusters) reached by
-  /// its last track(), as TrackedFitter passes it on: the state this body's own track() of
-  /// that cloud would reach, bit for bit, carrying on from the fit the copy carried on from.
-  /// The points are swapped in, and `state.positions` gets this body's former ones; the
-  /// sums and fits are copied, O(clusters). Velocities become zero.
-  /// @throw std::invalid_argument if the state's point or cluster count differs; the state
-  ///        is then unchanged.
-  void takeTrackedState(TrackedState& state);
+  /// Takes the points and state that a copy of this body (the same rest shape and clusters)
+  /// reached by its last track(), as TrackedFitter passes them on: the state this body's own
+  /// track() of that cloud would reach, bit for bit, carrying on from the fit the copy
+  /// carried on from. `positions` is swapped in and gets this body's former points; the sums
+  /// and fits are copied, O(clusters). Velocities become zero.
+  /// @throw std::invalid_argument if the point count or the state's cluster count differs;
+  ///        nothing changes then.
+  void takeTrackedState(std::vector<Eigen::Vector3d>& positions, const TrackedState& state);
 
   /// Places the points (a deformed start, a pose) and sets their velocities to zero. The
   /// per-cluster outputs are refreshed by registering the new positions, as track() does.
@@ -272,12 +272,12 @@ class ShapeMatchingBody {
 
  private:
   friend class TrackedFitter;
-  /// Passes what its last track() left to `state`, for takeTrackedState() of the body it
-  /// copies: the points swapped into `state.positions` (sized to the body first), the sums
-  /// and fits copied. It keeps its fit, from which its next track() carries on, but its
-  /// points are then `state`'s former buffer: only track() may follow, which
-  /// TrackedFitter, the one caller, keeps to.
-  void giveTrackedState(TrackedState& state);
+  /// Passes what its last track() left, for takeTrackedState() of the body it copies: the
+  /// points swapped into `positions` (a buffer of the body's size), the sums and fits copied
+  /// into `state`. It keeps its fit, from which its next track() carries on, but its points
+  /// are then `positions`' former buffer: only track() may follow, which TrackedFitter, the
+  /// one caller, keeps to.
+  void giveTrackedState(std::vector<Eigen::Vector3d>& positions, TrackedState& state);
   template <DeformationMode Mode, bool Damped>
   void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);
   template <DeformationMode Mode>

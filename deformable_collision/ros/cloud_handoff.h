@@ -27,9 +27,10 @@ struct ReadCloud {
   /// for the cycle to add: its clusters and hierarchy are built off the cycle's thread.
   Scene::PreparedObject prepared;
   /// A tracked object's cloud as the reader fitted it (TrackedFitter), for the cycle to take
-  /// over (Scene::observeFitted): the fit, too, is made off the cycle's thread.
+  /// over with `points` (Scene::observeFitted): the fit, too, is made off the cycle's thread.
   TrackedFit fit;
-  bool fitted = false;  ///< Whether `fit` holds this cloud's fit.
+  /// Whether `fit` holds the fit of this cloud, and `points` then its fitted points.
+  bool fitted = false;
 };
 
 /// The newest read cloud of each object, passed from the thread that reads clouds to the

@@ -246,7 +246,7 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
   }
   // A tracked object's clouds after its first are fits the reader made; the first one the
   // cycle takes may be one of them, bringing the object made from the cloud it replaced.
-  if (cloud.fitted) scene_.observeFitted(*slot.index, cloud.fit);
+  if (cloud.fitted) scene_.observeFitted(*slot.index, cloud.points, cloud.fit);
   if (pose) {
     scene_.setPose(*slot.index, *pose);
     slot.last_pose = *pose;

@@ -94,11 +94,10 @@ class DeformableCollisionNode {
     std::deque<AwaitingCloud> awaiting_transform;
     /// on_cloud track, once the reader has made the object from its first cloud: the
     /// object's fitter, that cloud's size and the indices of its finite points (the
-    /// object's points), and a buffer for later clouds taken down to those points.
+    /// object's points).
     std::optional<TrackedFitter> fitter;
     std::size_t tracked_cloud_size = 0;
     std::vector<std::uint32_t> tracked_indices;
-    std::vector<Eigen::Vector3d> tracked_points;
   };
 
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
@@ -133,7 +132,8 @@ class DeformableCollisionNode {
   /// A tracked object's first cloud, made into the object in `read.prepared`: the reader
   /// then fits the clouds after it.
   static void startTracking(CloudReader& reader, ReadCloud& read);
-  /// Fits a tracked object's cloud into `read.fit`, for the cycle to take over.
+  /// Fits a tracked object's cloud into `read.fit`, its fitted points into `read.points`,
+  /// for the cycle to take over.
   static void fitTrackedCloud(CloudReader& reader, ReadCloud& read);
   /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
   /// it never will (no frame, an unknown frame once tf has filled, not finite).

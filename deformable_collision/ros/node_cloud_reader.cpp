@@ -228,16 +228,16 @@ void DeformableCollisionNode::startTracking(CloudReader& reader, ReadCloud& read
 }
 
 void DeformableCollisionNode::fitTrackedCloud(CloudReader& reader, ReadCloud& read) {
-  // A first cloud without holes makes every later one the object's points as they are.
-  if (reader.tracked_indices.size() == read.points.size()) {
-    reader.fitter->fit(read.points, read.fit);
-  } else {
-    reader.tracked_points.resize(reader.tracked_indices.size());
+  // A first cloud without holes makes every later one the object's points as they are;
+  // otherwise the cloud is taken down to the object's points where it lies (the indices
+  // ascend, so none is overwritten before it is read), keeping its buffer's capacity.
+  if (reader.tracked_indices.size() != read.points.size()) {
     for (std::size_t k = 0; k < reader.tracked_indices.size(); ++k) {
-      reader.tracked_points[k] = read.points[reader.tracked_indices[k]];
+      read.points[k] = read.points[reader.tracked_indices[k]];
     }
-    reader.fitter->fit(reader.tracked_points, read.fit);
+    read.points.resize(reader.tracked_indices.size());
   }
+  reader.fitter->fit(read.points, read.fit);
   read.fitted = true;
 }
 

@@ -199,7 +199,7 @@ TEST(Scene, SteadyStateFittedCloudsAllocateNothing) {
   const auto fit_and_cycle = [&](int frame) {
     std::copy(clouds[frame].begin(), clouds[frame].end(), read.begin());
     fitter.fit(read, fit);
-    scene.observeFitted(object, fit);
+    scene.observeFitted(object, read, fit);
     scene.cycle();
   };
   for (int frame = 0; frame < 10; ++frame) fit_and_cycle(frame);

@@ -971,16 +971,16 @@ TEST(Track, ATrackedStateOfAnotherSizeThrowsAndLeavesBothAlone) {
   const Points rest = sampleBox(50, {0.3, 0.3, 0.3}, 15);
   ShapeMatchingBody body(rest, configFor(DeformationMode::kLinear, 2));
   ShapeMatchingBody other(sampleBox(60, {0.3, 0.3, 0.3}, 16), configFor(DeformationMode::kLinear, 2));
+  Points positions = other.positions();
   TrackedState state;
-  state.positions = other.positions();
   state.deformations = {other.deformation(0), other.deformation(1)};
   state.sums.resize(2);
-  EXPECT_THROW(body.takeTrackedState(state), std::invalid_argument);
-  state.positions.resize(rest.size());
+  EXPECT_THROW(body.takeTrackedState(positions, state), std::invalid_argument);
+  positions.resize(rest.size());
   state.deformations.pop_back();
-  EXPECT_THROW(body.takeTrackedState(state), std::invalid_argument);
+  EXPECT_THROW(body.takeTrackedState(positions, state), std::invalid_argument);
   EXPECT_EQ(body.positions(), rest);
-  EXPECT_EQ(state.positions.size(), rest.size());
+  EXPECT_EQ(positions.size(), rest.size());
   EXPECT_EQ(state.deformations.size(), 1u);
 }
 

@@ -273,7 +273,7 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
       // The first cloud taken carries the object, made from the first cloud read.
       ASSERT_EQ(tracked_index.has_value(), cloud.prepared.empty());
       if (!tracked_index) tracked_index = scene.addObject(std::move(cloud.prepared));
-      if (cloud.fitted) scene.observeFitted(*tracked_index, cloud.fit);
+      if (cloud.fitted) scene.observeFitted(*tracked_index, cloud.points, cloud.fit);
       superseded += pending;
       pending = true;
     }
