@@ -158,43 +158,46 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
                       : VectorWidth::kPortable;
   const std::size_t n = rest_points.size();
   point_mass_kg_ = config.mass_kg / static_cast<double>(n);
-  rest_positions_ = std::move(rest_points);
-  positions_ = rest_positions_;
+  auto rest = std::make_shared<RestShape>();
+  rest->positions = std::move(rest_points);
+  positions_ = rest->positions;
   velocities_.assign(n, Eigen::Vector3d::Zero());
   goal_sums_.assign(n, Eigen::Vector3d::Zero());
 
   const auto memberships =
-      partitionIntoClusters(rest_positions_, config.clusters, config.cluster_overlap_ratio);
-  membership_counts_.assign(n, 0);
+      partitionIntoClusters(rest->positions, config.clusters, config.cluster_overlap_ratio);
+  rest->membership_counts.assign(n, 0);
   for (const auto& members : memberships) {
-    for (const auto i : members) ++membership_counts_[i];
+    for (const auto i : members) ++rest->membership_counts[i];
   }
   for (std::uint32_t i = 0; i < n; ++i) {
-    if (membership_counts_[i] > 1) shared_points_.push_back(i);
+    if (rest->membership_counts[i] > 1) rest->shared_points.push_back(i);
   }
   for (const auto& members : memberships) {
-    clusters_.push_back(
-        makeCluster(members, membership_counts_, rest_positions_, point_mass_kg_, config.mode));
+    rest->clusters.push_back(
+        makeCluster(members, rest->membership_counts, rest->positions, point_mass_kg_,
+                    config.mode));
   }
-  indexPointSlots(clusters_, n, point_slot_offsets_, point_slots_);
-  displaced_moments_scratch_.assign(clusters_.size(), DisplacedMoments{});
+  indexPointSlots(rest->clusters, n, rest->point_slot_offsets, rest->point_slots);
+  rest_ = std::move(rest);
+  displaced_moments_scratch_.assign(rest_->clusters.size(), DisplacedMoments{});
   displacement_marks_.assign(n, DisplacementMark{});
 
-  deformations_.resize(clusters_.size());
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    deformations_[k].center_of_mass = clusters_[k].rest_center_of_mass;
+  deformations_.resize(rest_->clusters.size());
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+    deformations_[k].center_of_mass = rest_->clusters[k].rest_center_of_mass;
   }
   double rest_extent_m = 0.0;
-  for (const auto& p : rest_positions_) {
-    rest_extent_m = std::max(rest_extent_m, (p - rest_positions_.front()).norm());
+  for (const auto& p : rest_->positions) {
+    rest_extent_m = std::max(rest_extent_m, (p - rest_->positions.front()).norm());
   }
   rebase_distance_m_ = kRebaseDistanceInExtents * rest_extent_m;
   // The rest shape is registered about its own centres, so this registration never starts
   // afresh and needs fresh_deformations_ only to exist.
   fresh_deformations_ = deformations_;
-  cluster_sums_.resize(clusters_.size());
-  goal_transforms_.assign(clusters_.size(), Eigen::Matrix<double, 3, 9>::Zero());
-  goal_translations_.assign(clusters_.size(), Eigen::Vector3d::Zero());
+  cluster_sums_.resize(rest_->clusters.size());
+  goal_transforms_.assign(rest_->clusters.size(), Eigen::Matrix<double, 3, 9>::Zero());
+  goal_translations_.assign(rest_->clusters.size(), Eigen::Vector3d::Zero());
   setPositions(positions_);
   fresh_deformations_ = deformations_;
 }
@@ -221,12 +224,12 @@ std::size_t ShapeMatchingBody::trackSwapping(std::vector<Eigen::Vector3d>& obser
 
 void ShapeMatchingBody::takeTrackedState(std::vector<Eigen::Vector3d>& positions,
                                          const TrackedState& state) {
-  if (positions.size() != positions_.size() || state.sums.size() != clusters_.size() ||
-      state.deformations.size() != clusters_.size()) {
+  if (positions.size() != positions_.size() || state.sums.size() != rest_->clusters.size() ||
+      state.deformations.size() != rest_->clusters.size()) {
     throw std::invalid_argument(
         "tracked state of " + std::to_string(positions.size()) + " points and " +
         std::to_string(state.deformations.size()) + " clusters, the body has " +
-        std::to_string(positions_.size()) + " and " + std::to_string(clusters_.size()));
+        std::to_string(positions_.size()) + " and " + std::to_string(rest_->clusters.size()));
   }
   // As track() does: a waiting move is made before the points are replaced.
   makeDeferredMove();
@@ -298,19 +301,19 @@ Eigen::Vector3d ShapeMatchingBody::meanVelocity() const {
 template <DeformationMode Mode>
 void ShapeMatchingBody::sumCurrentState() {
   constexpr auto kAll = detail::MomentTerms::kMomentumAndSpin;
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
     cluster_sums_[k] = detail::clusterSums<kFeatureCount<Mode>, kAll>(
-        clusters_[k], point_mass_kg_, positions_, velocities_, deformations_[k].center_of_mass,
-        vector_width_);
+        rest_->clusters[k], point_mass_kg_, positions_, velocities_,
+        deformations_[k].center_of_mass, vector_width_);
   }
 }
 
 template <DeformationMode Mode>
 void ShapeMatchingBody::sumStoppedState() {
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
     cluster_sums_[k] = detail::clusterSums<kFeatureCount<Mode>, detail::MomentTerms::kAtRest>(
-        clusters_[k], point_mass_kg_, positions_, velocities_, deformations_[k].center_of_mass,
-        vector_width_);
+        rest_->clusters[k], point_mass_kg_, positions_, velocities_,
+        deformations_[k].center_of_mass, vector_width_);
   }
 }
 
@@ -325,8 +328,8 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
     stopped_ = true;
   }
   sumStoppedState<Mode>();
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    const Cluster& cluster = clusters_[k];
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+    const Cluster& cluster = rest_->clusters[k];
     if (observed == nullptr || std::all_of(cluster.points.begin(), cluster.points.end(), seen)) {
       // After absurd input the carried state would pass its damage on: start as fresh.
       const Eigen::Vector3d shift = cluster_sums_[k].offset / cluster.total_weight_kg;
@@ -346,8 +349,8 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
   if (observed != nullptr) {
     // Unobserved points move to the mean of their clusters' goals.
     double goal[3];
-    for (std::size_t k = 0; k < clusters_.size(); ++k) {
-      const Cluster& cluster = clusters_[k];
+    for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+      const Cluster& cluster = rest_->clusters[k];
       const GoalKernel<K> kernel(deformations_[k]);
       for (std::size_t j = 0; j < cluster.points.size(); ++j) {
         const std::uint32_t i = cluster.points[j];
@@ -358,13 +361,13 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
     }
     for (std::size_t i = 0; i < positions_.size(); ++i) {
       if (seen(static_cast<std::uint32_t>(i))) continue;
-      positions_[i] = goal_sums_[i] / membership_counts_[i];
+      positions_[i] = goal_sums_[i] / rest_->membership_counts[i];
       goal_sums_[i].setZero();
     }
     // The filled-in points moved: the sums must describe the positions now held.
     sumStoppedState<Mode>();
   }
-  detail::measureFitResiduals<Mode>(clusters_, positions_, vector_width_, deformations_);
+  detail::measureFitResiduals<Mode>(rest_->clusters, positions_, vector_width_, deformations_);
 }
 
 }  // namespace deformable_collision

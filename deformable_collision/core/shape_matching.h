@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -257,7 +258,7 @@ class ShapeMatchingBody {
   VectorWidth vectorWidth() const { return vector_width_; }
   std::size_t pointCount() const { return positions_.size(); }
   double pointMassKg() const { return point_mass_kg_; }
-  const std::vector<Eigen::Vector3d>& restPositions() const { return rest_positions_; }
+  const std::vector<Eigen::Vector3d>& restPositions() const { return rest_->positions; }
   const std::vector<Eigen::Vector3d>& positions() const {
     makeDeferredMove();
     return positions_;
@@ -266,8 +267,8 @@ class ShapeMatchingBody {
     makeDeferredMove();
     return velocities_;
   }
-  std::size_t clusterCount() const { return clusters_.size(); }
-  const Cluster& cluster(std::size_t k) const { return clusters_[k]; }
+  std::size_t clusterCount() const { return rest_->clusters.size(); }
+  const Cluster& cluster(std::size_t k) const { return rest_->clusters[k]; }
   const ClusterDeformation& deformation(std::size_t k) const { return deformations_[k]; }
 
  private:
@@ -310,7 +311,19 @@ class ShapeMatchingBody {
   ShapeMatchingConfig config_;
   VectorWidth vector_width_ = VectorWidth::kPortable;
   double point_mass_kg_ = 0.0;
-  std::vector<Eigen::Vector3d> rest_positions_;
+  /// What the constructor derives from the rest shape and nothing changes after: shared by
+  /// a body and its copies (a TrackedFitter's), which then cost only their state.
+  struct RestShape {
+    std::vector<Eigen::Vector3d> positions;
+    std::vector<Cluster> clusters;
+    std::vector<std::uint32_t> membership_counts;  ///< Clusters holding each point.
+    std::vector<std::uint32_t> shared_points;      ///< Points held by more than one cluster.
+    /// Clusters and slots holding each point: those of point i are
+    /// point_slots[point_slot_offsets[i] .. point_slot_offsets[i + 1]).
+    std::vector<std::uint32_t> point_slot_offsets;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> point_slots;
+  };
+  std::shared_ptr<const RestShape> rest_;
   // Mutable for the deferred move only (makeDeferredMove).
   mutable std::vector<Eigen::Vector3d> positions_;
   mutable std::vector<Eigen::Vector3d> velocities_;
@@ -320,7 +333,6 @@ class ShapeMatchingBody {
   /// Every velocity is zero, as the constructor and a registration leave them: a tracked
   /// object's registrations then write none (false after anything that may move a point).
   bool stopped_ = true;
-  std::vector<Cluster> clusters_;
   std::vector<ClusterDeformation> deformations_;
   /// The clusters' state once the constructor has registered the rest shape: where a
   /// registration starts from, as a fresh body would, when the state it would carry on
@@ -329,12 +341,6 @@ class ShapeMatchingBody {
   /// How far the points' centre may lie from the carried reference before a registration
   /// starts afresh: far beyond any motion between two inputs of an object this size.
   double rebase_distance_m_ = 0.0;
-  std::vector<std::uint32_t> membership_counts_;  ///< Clusters holding each point.
-  std::vector<std::uint32_t> shared_points_;     ///< Points held by more than one cluster.
-  /// Clusters and slots holding each point: those of point i are
-  /// point_slots_[point_slot_offsets_[i] .. point_slot_offsets_[i + 1]).
-  std::vector<std::uint32_t> point_slot_offsets_;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> point_slots_;
   /// What one call of applyDisplacements adds to a cluster's sums, gathered apart so that
   /// the sums are added to once per cluster.
   struct DisplacedMoments {

@@ -200,23 +200,23 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
   constexpr int K = kFeatureCount<Mode>;
   // Goals come from the registration of the current positions (kept from the last step or
   // registration), before any point moves.
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    detail::stepGoal<Mode>(clusters_[k], deformations_[k], config_.beta, config_.preserve_volume,
-                           goal_transforms_[k], goal_translations_[k]);
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+    detail::stepGoal<Mode>(rest_->clusters[k], deformations_[k], config_.beta,
+                           config_.preserve_volume, goal_transforms_[k], goal_translations_[k]);
   }
   // Damping keeps the rigid motion of the whole object, not of each cluster: clusters
   // turning against each other (bending) are non-rigid motion and must decay too.
-  StepMotion motion =
-      stepMotion(dt_s, acceleration_mps2, config_,
-                 Damped ? objectRigidMotion(clusters_, deformations_, cluster_sums_) : RigidMotion{});
+  StepMotion motion = stepMotion(
+      dt_s, acceleration_mps2, config_,
+      Damped ? objectRigidMotion(rest_->clusters, deformations_, cluster_sums_) : RigidMotion{});
   // Every point is moved once below, exclusive in its cluster or shared: each makes the
   // deferred move as it is loaded.
   motion.deferred = deferred_move_;
   deferred_move_ = detail::DeferredMove{};
 
   // Move the points; the same pass sums the moved points for the next fit.
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    const Cluster& cluster = clusters_[k];
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+    const Cluster& cluster = rest_->clusters[k];
     const GoalKernel<K> kernel(goal_transforms_[k], goal_translations_[k]);
     const Eigen::Vector3d reference = deformations_[k].center_of_mass;
     const PartialMoments<K> next = moveExclusivePoints<K, Damped>(
@@ -230,16 +230,16 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
 
   // A shared point takes the mean of its clusters' goals; the rigid velocity it is damped
   // towards is the whole object's, the same in every cluster.
-  for (const std::uint32_t i : shared_points_) {
-    const double share = 1.0 / membership_counts_[i];
+  for (const std::uint32_t i : rest_->shared_points) {
+    const double share = 1.0 / rest_->membership_counts[i];
     double goal[3];
     for (int r = 0; r < 3; ++r) goal[r] = share * goal_sums_[i][r];
     motion.move<Damped>(goal, positions_[i].data(), velocities_[i].data());
     goal_sums_[i].setZero();
   }
 
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    const Cluster& cluster = clusters_[k];
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+    const Cluster& cluster = rest_->clusters[k];
     if (cluster.exclusive_count < cluster.points.size()) {
       detail::addScaled(detail::accumulate<K, kStepTerms<Damped>>(
                             cluster, cluster.exclusive_count, cluster.points.size(),
@@ -249,7 +249,7 @@ void ShapeMatchingBody::simulate(double dt_s, const Eigen::Vector3d& acceleratio
     }
     detail::registerCluster<Mode>(cluster, cluster_sums_[k], deformations_[k]);
   }
-  detail::measureFitResiduals<Mode>(clusters_, positions_, vector_width_, deformations_);
+  detail::measureFitResiduals<Mode>(rest_->clusters, positions_, vector_width_, deformations_);
 }
 
 void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
@@ -330,8 +330,8 @@ void ShapeMatchingBody::followRigidMove(const Eigen::Vector3d& offset_m,
                                         const Eigen::Vector3d& spin_change_radps,
                                         const Eigen::Vector3d& center_m) {
   const double offset_norm = offset_m.norm();
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
-    const Cluster& cluster = clusters_[k];
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+    const Cluster& cluster = rest_->clusters[k];
     ClusterSums& sums = cluster_sums_[k];
     ClusterDeformation& deformation = deformations_[k];
     const double mass = cluster.total_weight_kg;
@@ -362,11 +362,11 @@ void ShapeMatchingBody::followRigidMove(const Eigen::Vector3d& offset_m,
 }
 
 RigidMotion ShapeMatchingBody::rigidMotion() const {
-  return objectRigidMotion(clusters_, deformations_, cluster_sums_);
+  return objectRigidMotion(rest_->clusters, deformations_, cluster_sums_);
 }
 
 Eigen::Vector3d ShapeMatchingBody::centerOfMass() const {
-  return objectCenterOfMass(clusters_, deformations_);
+  return objectCenterOfMass(rest_->clusters, deformations_);
 }
 
 void ShapeMatchingBody::displacePoints(const std::vector<PointDisplacement>& displacements) {
@@ -504,16 +504,17 @@ void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>&
                           d.velocity_change_mps.z()};
     Eigen::Vector3d& position = positions_[d.point];
     Eigen::Vector3d& velocity = velocities_[d.point];
-    for (std::uint32_t m = point_slot_offsets_[d.point]; m < point_slot_offsets_[d.point + 1]; ++m) {
-      const auto [k, slot] = point_slots_[m];
+    const auto& offsets = rest_->point_slot_offsets;
+    for (std::uint32_t m = offsets[d.point]; m < offsets[d.point + 1]; ++m) {
+      const auto [k, slot] = rest_->point_slots[m];
       if (!run.continues(k, dx)) {
         close_run();
         run.cluster = k;
         for (int r = 0; r < 3; ++r) run.dx[r] = dx[r];
       }
       double f[K];
-      featureArray<K>(clusters_[k].rest_offsets[slot], f);
-      run.add(detail::slotWeightKg(clusters_[k], slot, point_mass_kg_), position, velocity,
+      featureArray<K>(rest_->clusters[k].rest_offsets[slot], f);
+      run.add(detail::slotWeightKg(rest_->clusters[k], slot, point_mass_kg_), position, velocity,
               cluster_sums_[k].reference, f, dv);
     }
     position += d.displacement_m;
@@ -526,7 +527,7 @@ void ShapeMatchingBody::applyDisplacements(const std::vector<PointDisplacement>&
 template <DeformationMode Mode>
 void ShapeMatchingBody::refitDisplacedClusters() {
   constexpr int K = kFeatureCount<Mode>;
-  for (std::size_t k = 0; k < clusters_.size(); ++k) {
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
     DisplacedMoments& added = displaced_moments_scratch_[k];
     if (!added.touched) continue;
     ClusterSums& sums = cluster_sums_[k];
@@ -541,16 +542,17 @@ void ShapeMatchingBody::refitDisplacedClusters() {
     }
     ClusterDeformation& deformation = deformations_[k];
     const double largest_displacement = std::sqrt(added.largest_squared_m2);
-    const double rounding = additionRoundingBound(clusters_[k], deformation, largest_displacement);
+    const double rounding =
+        additionRoundingBound(rest_->clusters[k], deformation, largest_displacement);
     const Eigen::Matrix<double, 3, K> old_transform = deformation.transform.template leftCols<K>();
     const Eigen::Vector3d old_translation = deformation.translation;
-    detail::registerCluster<Mode>(clusters_[k], sums, deformation);
+    detail::registerCluster<Mode>(rest_->clusters[k], sums, deformation);
     // Every fitted point moves by at most |dT| |q~| + |dt| with the refit, and a displaced
     // point by its displacement, rounded, too: the residual stays bounded without visiting
     // the cluster.
     const double refit_motion =
         (deformation.transform.template leftCols<K>() - old_transform).norm() *
-            clusters_[k].max_feature_norm +
+            rest_->clusters[k].max_feature_norm +
         (deformation.translation - old_translation).norm();
     deformation.goal_deviation_bound_m += largest_displacement + refit_motion + rounding;
     added = DisplacedMoments{};

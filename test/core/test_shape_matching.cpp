@@ -967,6 +967,26 @@ TEST(Track, WrongSizeThrowsAndLeavesTheStateAlone) {
   EXPECT_EQ(body.positions(), rest);
 }
 
+// A TrackedFitter is a copy of its object's body: the copy holds the body's state, not a
+// second rest shape.
+TEST(Track, ACopySharesTheRestShapeAndTracksOnItsOwn) {
+  const Points rest = sampleBox(80, {0.3, 0.3, 0.3}, 17);
+  ShapeMatchingBody body(rest, configFor(DeformationMode::kQuadratic, 3));
+  ShapeMatchingBody copy = body;
+  EXPECT_EQ(copy.restPositions().data(), body.restPositions().data());
+  for (std::size_t k = 0; k < body.clusterCount(); ++k) {
+    EXPECT_EQ(copy.cluster(k).points.data(), body.cluster(k).points.data());
+    EXPECT_EQ(copy.cluster(k).rest_offsets.data(), body.cluster(k).rest_offsets.data());
+  }
+  EXPECT_NE(copy.positions().data(), body.positions().data());
+  Points moved = rest;
+  for (auto& p : moved) p.x() += 0.2;
+  copy.track(moved);
+  EXPECT_EQ(body.positions(), rest);
+  EXPECT_EQ(copy.positions(), moved);
+  EXPECT_EQ(copy.restPositions(), rest);
+}
+
 TEST(Track, ATrackedStateOfAnotherSizeThrowsAndLeavesBothAlone) {
   const Points rest = sampleBox(50, {0.3, 0.3, 0.3}, 15);
   ShapeMatchingBody body(rest, configFor(DeformationMode::kLinear, 2));
