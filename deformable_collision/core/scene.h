@@ -119,7 +119,7 @@ class TrackedFitter {
  private:
   friend class Scene;
   TrackedFitter(const ShapeMatchingBody& body, std::uint64_t rest_shape)
-      : body_(body), rest_shape_(rest_shape) {}
+      : body_(body.trackingCopy()), rest_shape_(rest_shape) {}
 
   ShapeMatchingBody body_;
   std::uint64_t rest_shape_;

@@ -242,6 +242,16 @@ void ShapeMatchingBody::takeTrackedState(std::vector<Eigen::Vector3d>& positions
   deformations_ = state.deformations;
 }
 
+ShapeMatchingBody ShapeMatchingBody::trackingCopy() const {
+  ShapeMatchingBody copy(*this);
+  copy.makeDeferredMove();
+  // Moved from empty vectors, so that their buffers go (assigning {} would keep them).
+  copy.velocities_ = std::vector<Eigen::Vector3d>();
+  copy.stopped_ = true;
+  copy.displacement_marks_ = std::vector<DisplacementMark>();
+  return copy;
+}
+
 void ShapeMatchingBody::giveTrackedState(std::vector<Eigen::Vector3d>& positions,
                                          TrackedState& state) {
   positions_.swap(positions);

@@ -273,6 +273,10 @@ class ShapeMatchingBody {
 
  private:
   friend class TrackedFitter;
+  /// A copy that only tracks (TrackedFitter's): the rest shape shared, the state copied, a
+  /// waiting deferred move made, but no velocities (track() makes them all zero, and sums
+  /// at rest never read them) and no scratch for displacements.
+  ShapeMatchingBody trackingCopy() const;
   /// Passes what its last track() left, for takeTrackedState() of the body it copies: the
   /// points swapped into `positions` (a buffer of the body's size), the sums and fits copied
   /// into `state`. It keeps its fit, from which its next track() carries on, but its points
