@@ -67,6 +67,25 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
   return params;
 }
 
+/// The port that descriptor `fd` listens on as an IPv4 or IPv6 socket, or 0.
+std::uint16_t listeningPort(int fd) {
+  sockaddr_storage address{};
+  socklen_t length = sizeof(address);
+  int listening = 0;
+  socklen_t flag_length = sizeof(listening);
+  if (getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0 ||
+      getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &listening, &flag_length) != 0 || !listening) {
+    return 0;
+  }
+  if (address.ss_family == AF_INET) {
+    return ntohs(reinterpret_cast<sockaddr_in*>(&address)->sin_port);
+  }
+  if (address.ss_family == AF_INET6) {
+    return ntohs(reinterpret_cast<sockaddr_in6*>(&address)->sin6_port);
+  }
+  return 0;
+}
+
 /// roscpp's XML-RPC server (xmlrpcpp's) listens with a backlog of 5. A node that subscribes to
 /// hundreds of this publisher's topics (the load test's 300) asks for them all at once; the
 /// kernel drops the connections beyond the backlog, and TCP tries them again after 1, 3, 7,
@@ -76,26 +95,15 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
 void lengthenXmlRpcBacklog() {
   const auto port = static_cast<std::uint16_t>(ros::XMLRPCManager::instance()->getServerPort());
   bool lengthened = false;
-  DIR* descriptors = opendir("/proc/self/fd");
-  while (descriptors != nullptr && !lengthened) {
-    const dirent* entry = readdir(descriptors);
-    if (entry == nullptr) break;
-    const int fd = std::atoi(entry->d_name);
-    sockaddr_storage address{};
-    socklen_t length = sizeof(address);
-    int listening = 0;
-    socklen_t flag_length = sizeof(listening);
-    if (fd <= 2 || getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0 ||
-        getsockopt(fd, SOL_SOCKET, SO_ACCEPTCONN, &listening, &flag_length) != 0 || !listening) {
-      continue;
+  if (DIR* descriptors = opendir("/proc/self/fd")) {
+    while (!lengthened) {
+      const dirent* entry = readdir(descriptors);
+      if (entry == nullptr) break;
+      const int fd = std::atoi(entry->d_name);
+      lengthened = fd > 2 && listeningPort(fd) == port && listen(fd, SOMAXCONN) == 0;
     }
-    const std::uint16_t bound =
-        address.ss_family == AF_INET ? ntohs(reinterpret_cast<sockaddr_in*>(&address)->sin_port)
-        : address.ss_family == AF_INET6 ? ntohs(reinterpret_cast<sockaddr_in6*>(&address)->sin6_port)
-                                        : 0;
-    lengthened = bound == port && listen(fd, SOMAXCONN) == 0;
+    closedir(descriptors);
   }
-  if (descriptors != nullptr) closedir(descriptors);
   if (!lengthened) {
     ROS_WARN("scene_publisher: its XML-RPC server keeps a backlog of 5: a node that subscribes "
              "to many of its topics at once may be connected to some only seconds later");
