@@ -21,7 +21,7 @@
 
 #include "bench/bench_common.h"
 #include "bench/s1_methods.h"
-#include "deformable_collision/core/collision_query.h"
+#include "deformable_collision/core/query/collision_query.h"
 #include "deformable_collision/scenes/shapes.h"
 
 namespace dc = deformable_collision;

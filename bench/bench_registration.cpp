@@ -42,9 +42,9 @@
 #include <string>
 #include <vector>
 
-#include "deformable_collision/core/cloud_registration.h"
-#include "deformable_collision/core/scene.h"
-#include "deformable_collision/core/shape_matching.h"
+#include "deformable_collision/core/registration/cloud_registration.h"
+#include "deformable_collision/core/scene/scene.h"
+#include "deformable_collision/core/shape_matching/shape_matching.h"
 #include "deformable_collision/scenes/camera_gripper_scene.h"
 #include "pcl_icp_registration.h"
 

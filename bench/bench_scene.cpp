@@ -40,7 +40,7 @@
 #include <vector>
 
 #include "bench/bench_common.h"
-#include "deformable_collision/core/bounding_sphere.h"
+#include "deformable_collision/core/hierarchy/bounding_sphere.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 

@@ -7,7 +7,7 @@
 #include <limits>
 #include <vector>
 
-#include "deformable_collision/core/shape_matching.h"
+#include "deformable_collision/core/shape_matching/shape_matching.h"
 #include "deformable_collision/scenes/shapes.h"
 
 namespace dc = deformable_collision;

@@ -6,7 +6,7 @@
 #include <memory>
 #include <vector>
 
-#include "deformable_collision/core/cloud_registration.h"
+#include "deformable_collision/core/registration/cloud_registration.h"
 
 namespace deformable_collision::bench {
 

@@ -10,7 +10,7 @@
 #include <optional>
 #include <vector>
 
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/scene/scene.h"
 
 namespace deformable_collision {
 

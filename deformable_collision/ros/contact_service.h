@@ -8,8 +8,8 @@
 #include "deformable_collision/ContactArray.h"
 #include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
-#include "deformable_collision/core/level_costs.h"
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/lod/level_costs.h"
+#include "deformable_collision/core/scene/scene.h"
 
 namespace deformable_collision {
 

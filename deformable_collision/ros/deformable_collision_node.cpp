@@ -5,7 +5,7 @@
 
 #include <algorithm>
 
-#include "deformable_collision/core/point_spacing.h"
+#include "deformable_collision/core/common/point_spacing.h"
 #include "deformable_collision/ros/cloud_transform.h"
 #include "deformable_collision/ros/contact_array_serialization.h"
 

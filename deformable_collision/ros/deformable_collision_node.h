@@ -21,7 +21,7 @@
 #include "deformable_collision/Stats.h"
 #include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/ros/cloud_handoff.h"
 #include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/counted_publisher.h"

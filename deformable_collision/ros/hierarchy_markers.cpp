@@ -58,7 +58,14 @@ void HierarchyMarkers::build(Scene& scene, int level, const std::vector<SceneCon
   clear.header = header;
   clear.action = visualization_msgs::Marker::DELETEALL;
   markers.markers.push_back(clear);
+  markColliding(scene, contacts);
+  for (std::size_t o = 0; o < scene.objectCount(); ++o) {
+    drawObject(scene, o, level, colliding_only, header, markers);
+  }
+}
 
+void HierarchyMarkers::markColliding(const Scene& scene,
+                                     const std::vector<SceneContact>& contacts) {
   const std::size_t objects = scene.objectCount();
   colliding_.resize(objects);
   for (std::size_t o = 0; o < objects; ++o) colliding_[o].assign(scene.tree(o).nodeCount(), 0);
@@ -78,47 +85,48 @@ void HierarchyMarkers::build(Scene& scene, int level, const std::vector<SceneCon
       }
     }
   }
+}
 
+void HierarchyMarkers::drawObject(Scene& scene, std::size_t object, int level,
+                                  bool colliding_only, const std_msgs::Header& header,
+                                  visualization_msgs::MarkerArray& markers) {
+  const SphereTree& tree = scene.tree(object);
+  const std_msgs::ColorRGBA color = objectColor(object, 0.35f);
   const std_msgs::ColorRGBA hit = collidingColor();
-  std::map<int, std::size_t> marker_of_step;
-  for (std::size_t o = 0; o < objects; ++o) {
-    const SphereTree& tree = scene.tree(o);
-    const std_msgs::ColorRGBA color = objectColor(o, 0.35f);
-    marker_of_step.clear();
-    stack_.assign(1, 0);
-    while (!stack_.empty()) {
-      const std::uint32_t n = stack_.back();
-      stack_.pop_back();
-      const SphereNode& node = tree.node(n);
-      if (!endsDescentToLevel(node, level)) {
-        for (std::uint32_t c = 0; c < node.child_count; ++c) stack_.push_back(node.first_child + c);
-        continue;
-      }
-      const bool in_contact = colliding_[o][n] != 0;
-      if (colliding_only && !in_contact) continue;
-      const Sphere& sphere = scene.currentSphere(o, n);
-      const int step = radiusStep(sphere.radius, sphere.center.norm());
-      auto [slot, added] = marker_of_step.emplace(step, markers.markers.size());
-      if (added) {
-        visualization_msgs::Marker marker;
-        marker.header = header;
-        marker.ns = scene.objectConfig(o).name;
-        marker.id = step;
-        marker.type = visualization_msgs::Marker::SPHERE_LIST;
-        marker.action = visualization_msgs::Marker::ADD;
-        marker.pose.orientation.w = 1.0;
-        marker.scale.x = marker.scale.y = marker.scale.z = 2.0 * stepRadius(step);
-        marker.color = color;
-        markers.markers.push_back(std::move(marker));
-      }
-      visualization_msgs::Marker& marker = markers.markers[slot->second];
-      geometry_msgs::Point center;
-      center.x = sphere.center.x();
-      center.y = sphere.center.y();
-      center.z = sphere.center.z();
-      marker.points.push_back(center);
-      marker.colors.push_back(in_contact ? hit : color);
+  marker_of_step_.clear();
+  stack_.assign(1, 0);
+  while (!stack_.empty()) {
+    const std::uint32_t n = stack_.back();
+    stack_.pop_back();
+    const SphereNode& node = tree.node(n);
+    if (!endsDescentToLevel(node, level)) {
+      for (std::uint32_t c = 0; c < node.child_count; ++c) stack_.push_back(node.first_child + c);
+      continue;
     }
+    const bool in_contact = colliding_[object][n] != 0;
+    if (colliding_only && !in_contact) continue;
+    const Sphere& sphere = scene.currentSphere(object, n);
+    const int step = radiusStep(sphere.radius, sphere.center.norm());
+    auto [slot, added] = marker_of_step_.emplace(step, markers.markers.size());
+    if (added) {
+      visualization_msgs::Marker marker;
+      marker.header = header;
+      marker.ns = scene.objectConfig(object).name;
+      marker.id = step;
+      marker.type = visualization_msgs::Marker::SPHERE_LIST;
+      marker.action = visualization_msgs::Marker::ADD;
+      marker.pose.orientation.w = 1.0;
+      marker.scale.x = marker.scale.y = marker.scale.z = 2.0 * stepRadius(step);
+      marker.color = color;
+      markers.markers.push_back(std::move(marker));
+    }
+    visualization_msgs::Marker& marker = markers.markers[slot->second];
+    geometry_msgs::Point center;
+    center.x = sphere.center.x();
+    center.y = sphere.center.y();
+    center.z = sphere.center.z();
+    marker.points.push_back(center);
+    marker.colors.push_back(in_contact ? hit : color);
   }
 }
 

@@ -3,10 +3,12 @@
 #include <std_msgs/Header.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <cstddef>
 #include <cstdint>
+#include <map>
 #include <vector>
 
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/scene/scene.h"
 
 namespace deformable_collision {
 
@@ -30,8 +32,15 @@ class HierarchyMarkers {
              visualization_msgs::MarkerArray& markers);
 
  private:
+  /// Marks the nodes in `contacts` and their ancestors in colliding_.
+  void markColliding(const Scene& scene, const std::vector<SceneContact>& contacts);
+  /// Appends `object`'s spheres of `level` to the markers of their radius steps.
+  void drawObject(Scene& scene, std::size_t object, int level, bool colliding_only,
+                  const std_msgs::Header& header, visualization_msgs::MarkerArray& markers);
+
   std::vector<std::vector<std::uint8_t>> colliding_;  ///< Per object, per node.
   std::vector<std::uint32_t> stack_;
+  std::map<int, std::size_t> marker_of_step_;  ///< An object's marker of each radius step.
 };
 
 }  // namespace deformable_collision

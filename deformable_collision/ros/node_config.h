@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "deformable_collision/core/enum_names.h"
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/common/enum_names.h"
+#include "deformable_collision/core/scene/scene.h"
 
 namespace deformable_collision {
 

@@ -4,8 +4,8 @@
 #include <optional>
 #include <string>
 
-#include "deformable_collision/core/enum_names.h"
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/common/enum_names.h"
+#include "deformable_collision/core/scene/scene.h"
 
 namespace deformable_collision {
 

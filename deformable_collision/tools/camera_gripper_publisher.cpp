@@ -136,6 +136,36 @@ void publishFixedClouds(const CameraGripperScene& scene, const CameraPublisherPa
   floor.publish(cloud);
 }
 
+/// The camera's and the jaws' frames at `time_s`, stamped `now`: sent before the clouds, so
+/// that a listener can place the clouds as soon as they arrive.
+void publishFrames(const CameraGripperScene& scene, const std::string& fixed_frame,
+                   double time_s, const ros::Time& now,
+                   tf2_ros::TransformBroadcaster& broadcaster) {
+  broadcaster.sendTransform(
+      toTransformStamped(scene.cameraPose(time_s), now, fixed_frame, kCameraFrame));
+  broadcaster.sendTransform(
+      toTransformStamped(scene.jawPose(JawSide::kLeft, time_s), now, fixed_frame, "jaw_left"));
+  broadcaster.sendTransform(
+      toTransformStamped(scene.jawPose(JawSide::kRight, time_s), now, fixed_frame, "jaw_right"));
+}
+
+/// The camera's organized cloud of the sponge and the sponge's ground truth, as rendered.
+void publishCameraClouds(const CameraGripperScene& scene, const CameraPublisherParams& params,
+                         const ros::Time& now, ros::Publisher& camera_cloud,
+                         ros::Publisher& ground_truth) {
+  auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+  cloud->header.stamp = now;
+  cloud->header.frame_id = kCameraFrame;
+  writeOrganizedCloud(scene.cloud(), params.scene.camera.width_px,
+                      params.scene.camera.height_px, *cloud);
+  camera_cloud.publish(cloud);
+  auto truth = boost::make_shared<sensor_msgs::PointCloud2>();
+  truth->header.stamp = now;
+  truth->header.frame_id = params.fixed_frame;
+  writeGroundTruth(scene.groundTruth(), scene.groundTruthVisible(), *truth);
+  ground_truth.publish(truth);
+}
+
 }  // namespace
 
 int runCameraGripperPublisher(ros::NodeHandle& node_handle, const ros::NodeHandle& private_handle) {
@@ -176,23 +206,8 @@ int runCameraGripperPublisher(ros::NodeHandle& node_handle, const ros::NodeHandl
     const ros::Time now = ros::Time::now();
     const double time_s = (now - start).toSec();
     scene->render(time_s);
-    // The frames first, so that a listener can place the clouds as soon as they arrive.
-    broadcaster.sendTransform(
-        toTransformStamped(scene->cameraPose(time_s), now, params->fixed_frame, kCameraFrame));
-    broadcaster.sendTransform(
-        toTransformStamped(scene->jawPose(JawSide::kLeft, time_s), now, params->fixed_frame, "jaw_left"));
-    broadcaster.sendTransform(toTransformStamped(scene->jawPose(JawSide::kRight, time_s), now,
-                                          params->fixed_frame, "jaw_right"));
-    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
-    cloud->header.stamp = now;
-    cloud->header.frame_id = kCameraFrame;
-    writeOrganizedCloud(scene->cloud(), camera.width_px, camera.height_px, *cloud);
-    camera_cloud.publish(cloud);
-    auto truth = boost::make_shared<sensor_msgs::PointCloud2>();
-    truth->header.stamp = now;
-    truth->header.frame_id = params->fixed_frame;
-    writeGroundTruth(scene->groundTruth(), scene->groundTruthVisible(), *truth);
-    ground_truth.publish(truth);
+    publishFrames(*scene, params->fixed_frame, time_s, now, broadcaster);
+    publishCameraClouds(*scene, *params, now, camera_cloud, ground_truth);
     publishFixedClouds(*scene, *params, now, floor, jaws);
     ros::spinOnce();
     rate.sleep();

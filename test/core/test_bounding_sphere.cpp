@@ -1,4 +1,4 @@
-#include "deformable_collision/core/bounding_sphere.h"
+#include "deformable_collision/core/hierarchy/bounding_sphere.h"
 
 #include <gtest/gtest.h>
 

@@ -1,5 +1,5 @@
 // CloudRegistration: known deformations recovered from unordered, partial, noisy clouds.
-#include "deformable_collision/core/cloud_registration.h"
+#include "deformable_collision/core/registration/cloud_registration.h"
 
 #include <gtest/gtest.h>
 
@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "deformable_collision/core/scene.h"
-#include "deformable_collision/core/shape_matching.h"
-#include "deformable_collision/core/sphere_tree.h"
+#include "deformable_collision/core/scene/scene.h"
+#include "deformable_collision/core/shape_matching/shape_matching.h"
+#include "deformable_collision/core/hierarchy/sphere_tree.h"
 
 namespace deformable_collision {
 namespace {

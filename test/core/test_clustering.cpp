@@ -1,4 +1,4 @@
-#include "deformable_collision/core/clustering.h"
+#include "deformable_collision/core/shape_matching/clustering.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "deformable_collision/core/collision_query.h"
+#include "deformable_collision/core/query/collision_query.h"
 
 #include <gtest/gtest.h>
 

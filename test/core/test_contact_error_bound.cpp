@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/scenes/shapes.h"
 

@@ -1,9 +1,9 @@
-#include "deformable_collision/core/enum_names.h"
+#include "deformable_collision/core/common/enum_names.h"
 
 #include <gtest/gtest.h>
 
-#include "deformable_collision/core/scene.h"
-#include "deformable_collision/core/shape_matching.h"
+#include "deformable_collision/core/scene/scene.h"
+#include "deformable_collision/core/shape_matching/shape_matching.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 
 namespace deformable_collision {

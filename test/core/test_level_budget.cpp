@@ -1,4 +1,4 @@
-#include "deformable_collision/core/level_budget.h"
+#include "deformable_collision/core/lod/level_budget.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "deformable_collision/core/level_costs.h"
+#include "deformable_collision/core/lod/level_costs.h"
 
 #include <gtest/gtest.h>
 

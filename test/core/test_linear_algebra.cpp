@@ -1,4 +1,4 @@
-#include "deformable_collision/core/linear_algebra.h"
+#include "deformable_collision/core/common/linear_algebra.h"
 
 #include <gtest/gtest.h>
 

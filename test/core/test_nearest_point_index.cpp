@@ -1,4 +1,4 @@
-#include "deformable_collision/core/nearest_point_index.h"
+#include "deformable_collision/core/common/nearest_point_index.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "deformable_collision/core/node_slabs.h"
+#include "deformable_collision/core/hierarchy/node_slabs.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <random>
 #include <string>
 
-#include "deformable_collision/core/shape_matching.h"
+#include "deformable_collision/core/shape_matching/shape_matching.h"
 #include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {

@@ -1,4 +1,4 @@
-#include "deformable_collision/core/point_spacing.h"
+#include "deformable_collision/core/common/point_spacing.h"
 
 #include <gtest/gtest.h>
 

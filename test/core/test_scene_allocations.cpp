@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "deformable_collision/scenes/demo_scenes.h"
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/scenes/shapes.h"
 
 namespace {

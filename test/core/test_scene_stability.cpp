@@ -14,7 +14,7 @@
 #include <utility>
 #include <vector>
 
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {

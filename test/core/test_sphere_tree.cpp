@@ -1,4 +1,4 @@
-#include "deformable_collision/core/sphere_tree.h"
+#include "deformable_collision/core/hierarchy/sphere_tree.h"
 
 #include <gtest/gtest.h>
 

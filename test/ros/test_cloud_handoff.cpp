@@ -7,7 +7,7 @@
 #include <set>
 #include <thread>
 
-#include "deformable_collision/core/scene.h"
+#include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 #include "deformable_collision/scenes/shapes.h"
 

@@ -1,0 +1,186 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace deformable_collision {
+
+struct SceneConfig;
+struct SceneContact;
+struct SphereContact;
+namespace detail {
+struct SceneObject;
+}
+
+/// The contacts of one object pair: contacts[begin, end).
+struct ContactRun {
+  std::uint32_t object_a = 0;
+  std::uint32_t object_b = 0;
+  std::size_t begin = 0;
+  std::size_t end = 0;
+  bool support_link = true;  ///< Whether the support ranking counts the pair.
+};
+
+/// The level-of-detail response (paper section 6) to a cycle's contacts: each pair of
+/// touching objects is separated to half the contact distance. The whole object moves by the
+/// mean push of its contact nodes (more for stiff objects) and stops approaching the other
+/// (with Coulomb friction), and the nodes dent it by what they need beyond that; pairs are
+/// resolved one after the other, objects nearer to a fixed support acting as fixed (shock
+/// propagation). Holds the scratch of every step, so that steady-state responses allocate
+/// nothing.
+class ContactResponse {
+ public:
+  using Objects = std::vector<std::unique_ptr<detail::SceneObject>>;
+
+  /// Reads the scene's objects, contacts, runs and configuration through these references,
+  /// which must outlive it.
+  ContactResponse(Objects& objects, const std::vector<SceneContact>& contacts,
+                  std::vector<ContactRun>& runs, const SceneConfig& config)
+      : objects_(objects), contacts_(contacts), contact_runs_(runs), config_(config) {}
+  ContactResponse(const ContactResponse&) = delete;
+  ContactResponse& operator=(const ContactResponse&) = delete;
+
+  /// Moves and dents the dynamic objects of the runs' pairs and changes their velocities;
+  /// marks what it moved stale.
+  /// @return the number of points displaced by dents.
+  std::size_t respond();
+
+ private:
+  using Object = detail::SceneObject;
+  struct ContactPush;
+  struct ResolvingPair;
+  struct FixedSurface;
+  struct TouchedSurface;
+  /// Scratch of one side of the dynamic pair being resolved: its contact nodes, and per node
+  /// its number of the pair's contacts (0 outside them) and how far its points reach along
+  /// the pair's normal, towards the partner. One per side for the whole scene, sized to the
+  /// largest tree met: an object's own would be cold in memory each time it is resolved.
+  struct PairContactNodes {
+    /// Makes room for a tree of `node_count` nodes; allocates only for a larger one than
+    /// before.
+    void fit(std::size_t node_count);
+
+    std::vector<std::uint32_t> nodes;
+    std::vector<std::uint32_t> contacts_of_node;
+    std::vector<double> reach_of_node;
+  };
+  /// A pair's velocity exchange as its resolution decided it.
+  struct VelocityExchange {
+    std::uint32_t object_a;
+    std::uint32_t object_b;
+    Eigen::Vector3d normal;  ///< From b to a.
+    double share_a;          ///< a's share of the change (shock propagation).
+    bool sticks;             ///< Static friction held the pair in position.
+  };
+  /// A dynamic object's move for one of its pairs with a fixed object, kept until every
+  /// such pair is resolved (fixed_pair_moves_).
+  struct FixedPairMove {
+    std::uint32_t object;
+    std::uint32_t serial;    ///< Order of resolution, for a stable grouping by object.
+    Eigen::Vector3d normal;  ///< The pair's normal, towards the dynamic object.
+    Eigen::Vector3d move;
+  };
+  /// A node lowestInLine still has to visit, and how low its sphere reaches.
+  struct ReachingNode {
+    std::uint32_t node;
+    double lowest_m;
+  };
+
+  /// Reads each touching object's mean velocity once for this response.
+  void readMeanVelocities();
+  /// Counts each object's hops to a fixed one over touching objects (support_depth).
+  void rankSupport();
+  /// Between a fixed and a dynamic object: whether the dynamic one lay on the touched
+  /// surface before this cycle's step. Between dynamic objects: true.
+  bool isSupportLink(const ContactRun& run);
+  /// Resolves the pairs from the supports up.
+  void resolvePairs();
+  /// Moves each dynamic object by its pairs with fixed objects taken together.
+  void moveByFixedPartners();
+  /// Passes over the pairs' velocities after the first (velocity_exchanges_).
+  void repeatVelocityExchanges();
+  /// Stops a pair's approach (or, where it sticks, its sliding) along the exchange's normal,
+  /// shared by its share_a.
+  void exchangeVelocity(const VelocityExchange& exchange);
+  /// Once every pair is resolved: no object leaves moving into a fixed one it was pushed off.
+  void stopApproachToFixedPartners();
+  /// Moves a dynamic object by its pairs' pushes and dents it where they need more.
+  void applyObjectResponse(Object& object);
+  /// Dents the pending nodes by what their contacts need beyond the object's move, once
+  /// every pair has added to that move.
+  void applyPendingDents(Object& object);
+  void resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
+                   std::size_t run_begin, std::size_t run_end);
+  void holdClearContact(ResolvingPair& pair);
+  bool heldContact(const ResolvingPair& pair);
+  /// How far an object in contact was carried by its mean velocity in this cycle's step (0
+  /// if not dynamic).
+  Eigen::Vector3d stepOf(const Object& object) const;
+  void undoStepApproach(const ResolvingPair& pair, const Eigen::Vector3d& normal,
+                        Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const;
+  Eigen::Vector3d sideOfA(const ResolvingPair& pair);
+  Eigen::Vector3d separatingNormal(const ResolvingPair& pair);
+  /// Whether moving `object` along the unit `direction` drives it into a fixed object that
+  /// pushed it off in this response (within 45 degrees of straight into it).
+  bool againstFixedPartner(const Object& object, const Eigen::Vector3d& direction) const;
+  /// One push per contact still too deep into pushes_.
+  void collectPushes(const ResolvingPair& pair);
+  /// The surface of the fixed object's `node` that faces the dynamic one.
+  FixedSurface fixedSurface(const ResolvingPair& pair, std::uint32_t node);
+  TouchedSurface touchedSurface(const ResolvingPair& pair, const Eigen::Vector3d& away);
+  bool pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& contact,
+                          ContactPush& push);
+  void clearPassedPoints(ResolvingPair& pair);
+  /// The least `touched.away` component of the object's points in line with the touched
+  /// nodes (infinity if none).
+  double lowestInLine(Object& moving, const TouchedSurface& touched);
+  bool pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& contact,
+                          ContactPush& push) const;
+  void moveByMeanPush(ResolvingPair& pair);
+  void queueDents(const ResolvingPair& pair);
+  void rememberSide(const ResolvingPair& pair, const Eigen::Vector3d& normal);
+  void exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& normal);
+  /// Whether the pair sticks: its slip is taken back.
+  bool holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
+                          double share_a) const;
+
+  /// One contact's push: depths along `normal` (from b to a) that a and b must move.
+  struct ContactPush {
+    std::uint32_t node_a = 0;
+    std::uint32_t node_b = 0;
+    double points_a = 0.0;  ///< Points of node_a: its weight in a's mean push.
+    double points_b = 0.0;
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+    double depth_a = 0.0;
+    double depth_b = 0.0;
+    /// Against a fixed node: the level along the push, unmoved, where the moving object's
+    /// points are clear of its surface by half the contact distance.
+    double surface_m = 0.0;
+  };
+
+  Objects& objects_;
+  const std::vector<SceneContact>& contacts_;
+  std::vector<ContactRun>& contact_runs_;
+  const SceneConfig& config_;
+
+  std::vector<ContactPush> pushes_;
+  PairContactNodes pair_nodes_a_;
+  PairContactNodes pair_nodes_b_;
+  std::vector<std::uint32_t> support_queue_;
+  std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
+  /// The velocity exchanges of this response's pairs, in their order, for the later passes.
+  std::vector<VelocityExchange> velocity_exchanges_;
+  std::vector<FixedPairMove> fixed_pair_moves_;
+  std::vector<std::uint32_t> neighbour_offsets_;
+  std::vector<std::uint32_t> neighbour_fill_;
+  std::vector<std::uint32_t> neighbours_;
+  std::vector<ReachingNode> lowest_descent_;
+  std::size_t points_displaced_ = 0;  ///< By this response's dents.
+  std::uint64_t cycle_count_ = 1;
+  std::uint64_t pair_serial_ = 0;  ///< Counts resolvePair calls: keys each pair's dents.
+};
+
+}  // namespace deformable_collision

@@ -1,0 +1,118 @@
+// The dents of a dynamic object: queued per pair, applied once every pair has moved it.
+#include <algorithm>
+#include <optional>
+
+#include "deformable_collision/core/response/detail/resolving_pair.h"
+
+namespace deformable_collision {
+namespace {
+
+using detail::DentScratch;
+
+/// What a pending dent's contacts that need some need beyond the object's move, summed and
+/// counted.
+struct Beyond {
+  double sum_m = 0.0;
+  std::uint32_t count = 0;
+};
+
+/// Each contact's need along the dent's `away` is `reach(depth)`.
+template <typename Reach>
+Beyond beyond(const DentScratch& dents, const DentScratch::PendingDent& pending,
+              const Reach& reach) {
+  Beyond total;
+  for (std::uint32_t d = pending.first_depth; d != DentScratch::kNoDepth;
+       d = dents.depths[d].next) {
+    const double need = reach(dents.depths[d]);
+    if (need <= 0.0) continue;
+    total.sum_m += need;
+    ++total.count;
+  }
+  return total;
+}
+
+/// Adds a point's share of a dent to the object's sums; `other_velocity` is the partner's.
+void dentPoint(detail::SceneObject& object, const DentScratch::PendingDent& pending,
+               std::uint32_t point, const Beyond& need, const Eigen::Vector3d& other_velocity) {
+  DentScratch& dents = object.dents;
+  if (dents.displacement_counts[point] == 0) dents.displaced_points.push_back(point);
+  dents.displacement_counts[point] += need.count;
+  dents.displacement_sums[point] += need.sum_m * pending.away;
+  const double inward =
+      std::min(0.0, (object.body.velocities()[point] - other_velocity).dot(pending.away));
+  dents.velocity_change_sums[point] -= (need.count * inward) * pending.away;
+}
+
+/// Each of the node's contacts with the partner dents it by what it needs beyond the
+/// object's move; a point takes the mean over all the dents it gets.
+void dentNode(detail::SceneObject& object, const DentScratch::PendingDent& pending,
+              const Eigen::Vector3d& other_velocity) {
+  const double moved = object.translation.dot(pending.away);
+  const SphereNode& node = object.tree.node(pending.node);
+  const std::uint32_t* slots = object.tree.pointIndices().data() + node.first_point;
+  if (pending.to_surface) {
+    // A coarse node against a fixed surface: only its points short of the surface move,
+    // each by its own need, as the leaves' contacts would move them. The node's deepest
+    // point's depth, given to all, would dent hundreds of points by what one needs.
+    const auto& positions = object.body.positions();
+    for (std::uint32_t s = 0; s < node.point_count; ++s) {
+      const double along = positions[slots[s]].dot(pending.away) + moved;
+      const Beyond need = beyond(object.dents, pending, [&](const DentScratch::DentDepth& depth) {
+        return depth.surface_m - along;
+      });
+      if (need.count > 0) dentPoint(object, pending, slots[s], need, other_velocity);
+    }
+    return;
+  }
+  const Beyond need = beyond(object.dents, pending, [&](const DentScratch::DentDepth& depth) {
+    return depth.depth_unmoved_m - moved;
+  });
+  if (need.count == 0) return;
+  for (std::uint32_t s = 0; s < node.point_count; ++s) {
+    dentPoint(object, pending, slots[s], need, other_velocity);
+  }
+}
+
+}  // namespace
+
+void ContactResponse::queueDents(const ResolvingPair& pair) {
+  Object& a = pair.a;
+  Object& b = pair.b;
+  // Above the leaves a fixed node's surface dents each point to it: a coarse node's depth
+  // is its deepest point's. At the leaves a node is a few points, dented whole.
+  const bool to_surface = pair.one_side_fixed && !pair.leaves;
+  for (const ContactPush& push : pushes_) {
+    const std::optional<double> surface =
+        to_surface ? std::optional<double>(push.surface_m) : std::nullopt;
+    if (a.dynamic() && push.depth_a > 0.0) {
+      a.dents.add(push.node_a, push.normal,
+                  push.depth_a + pair.translation_before_a.dot(push.normal), pair.index_b,
+                  pair_serial_, surface);
+    }
+    if (b.dynamic() && push.depth_b > 0.0) {
+      b.dents.add(push.node_b, -push.normal,
+                  push.depth_b - pair.translation_before_b.dot(push.normal), pair.index_a,
+                  pair_serial_, surface);
+    }
+  }
+}
+
+// A dented point is blocked by the other object: it also stops moving into it (the other
+// object takes that momentum). Left alone, the goal step turns each cycle's dent into
+// motion towards the contact, and a held contact pumps up speed. Both velocities are those
+// after this response's whole-object changes (velocity_after): a point measured before its
+// object's own change would be stopped twice, and a resting object would leave each cycle
+// moving up.
+void ContactResponse::applyPendingDents(Object& object) {
+  for (const DentScratch::PendingDent& pending : object.dents.pending) {
+    // The partner's velocity after the response, less this object's own change: what a
+    // point's current velocity is compared with.
+    const Eigen::Vector3d other_velocity =
+        objects_[pending.partner]->velocity_after - object.velocity_change;
+    dentNode(object, pending, other_velocity);
+  }
+  object.dents.pending.clear();
+  object.dents.depths.clear();
+}
+
+}  // namespace deformable_collision

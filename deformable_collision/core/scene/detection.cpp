@@ -1,0 +1,140 @@
+// The scene's detection: the broad phase gives the candidate object pairs, the hierarchy
+// query finds each pair's contacts, and pairs that did not change keep theirs.
+#include <algorithm>
+
+#include "deformable_collision/core/scene/scene.h"
+
+#include "deformable_collision/core/scene/detail/scene_object.h"
+
+namespace deformable_collision {
+namespace {
+
+/// Writes a query's contacts straight into the scene's list, tagged with their objects.
+class PairContacts final : public ContactSink {
+ public:
+  PairContacts(std::vector<SceneContact>& contacts, std::uint32_t object_a, std::uint32_t object_b)
+      : contacts_(contacts), object_a_(object_a), object_b_(object_b) {}
+  void add(const SphereContact& contact) override {
+    contacts_.push_back(SceneContact{object_a_, object_b_, contact});
+  }
+
+ private:
+  std::vector<SceneContact>& contacts_;
+  std::uint32_t object_a_;
+  std::uint32_t object_b_;
+};
+
+bool movesOnlyRigidly(ObjectKind kind) {
+  return kind == ObjectKind::kStatic || kind == ObjectKind::kKinematic;
+}
+
+/// The level the query of objects a and b runs to at the scene's `level`. An object that
+/// moves only rigidly meets one that ends at or above `level` at its own leaves: its tree
+/// costs nothing to keep, its slabs prune the descent there, and a leaf contact costs the
+/// response a point pair, where its coarse nodes at `level` would reach far more of the
+/// other's leaves than its points do (a floor's level 7 against a pile object's leaves).
+int queryLevel(int level, const SphereTree& a, ObjectKind kind_a, const SphereTree& b,
+               ObjectKind kind_b) {
+  const bool rigid_a = movesOnlyRigidly(kind_a);
+  if (rigid_a == movesOnlyRigidly(kind_b)) return level;
+  const SphereTree& deforming = rigid_a ? b : a;
+  return level >= deforming.maxLevel() ? std::max(a.maxLevel(), b.maxLevel()) : level;
+}
+
+}  // namespace
+
+const std::vector<BroadPhase::Pair>& Scene::sweepAndPrune() {
+  const double margin = 0.5 * config_.contact_distance_m;
+  return broad_phase_.sweep(objects_.size(), [&](std::uint32_t index) {
+    Object& o = *objects_[index];
+    const bool is_static = o.config.kind == ObjectKind::kStatic;
+    // Static objects keep their points' box, set when they were made.
+    if (!is_static) {
+      const Sphere& root = o.tree.sphere(0);
+      const Eigen::Vector3d reach = Eigen::Vector3d::Constant(root.radius + margin);
+      o.sweep_box = Eigen::AlignedBox3d(root.center - reach, root.center + reach);
+    }
+    return BroadPhase::Box{o.sweep_box, is_static};
+  });
+}
+
+void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
+                   std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs) {
+  const auto& candidate_pairs = sweepAndPrune();
+  const auto matches = [&](std::size_t a, std::size_t b) {
+    const bool a_ok = !only_a || *only_a == a;
+    const bool b_ok = !only_b || *only_b == b;
+    return a_ok && b_ok;
+  };
+  for (const auto& [a, b] : candidate_pairs) {
+    // A pair matches the filter in either order; contacts keep the order asked for.
+    const bool forward = matches(a, b);
+    const bool backward = !forward && matches(b, a);
+    if (!forward && !backward) continue;
+    ++stats_.object_pairs_tested;
+    queryPair(level, forward ? a : b, forward ? b : a, contacts, runs);
+  }
+}
+
+void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second,
+                      std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs) {
+  PairContacts pair_contacts(contacts, first, second);
+  const std::size_t begin = contacts.size();
+  Object& a = *objects_[first];
+  Object& b = *objects_[second];
+  const PairSlabs slabs{a.slabs.empty() ? nullptr : &a.slabs,
+                        b.slabs.empty() ? nullptr : &b.slabs};
+  query_.collide(a.tree, b.tree, queryLevel(level, a.tree, a.config.kind, b.tree, b.config.kind),
+                 config_.contact_distance_m, pair_contacts, query_counters_, slabs);
+  if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
+}
+
+// Two objects whose points did not change since the last detection have the same contacts
+// at the same level: the same candidate pair (their boxes come from the same spheres) and the
+// same query on the same spheres. Only tracked, kinematic and static objects keep their
+// points between detections: a tracked pile between its clouds, a camera's object on the
+// floor, and what a detection ahead of the cycle saw. Every dynamic object moves in each
+// cycle's step, so a detection ahead leaves its pairs to the cycle.
+void Scene::detectCycleContacts(int level, bool ahead) {
+  contacts_.swap(previous_contacts_);
+  contact_runs_.swap(previous_runs_);
+  contacts_.clear();
+  contact_runs_.clear();
+  const bool reusable = previous_level_ == level;
+  // Unset until this detection is complete: one that throws leaves nothing to reuse.
+  previous_level_.reset();
+  const auto& candidate_pairs = sweepAndPrune();
+  const auto unchanged = [this](std::uint32_t object) {
+    return objects_[object]->revision <= revisions_detected_;
+  };
+  std::size_t cursor = 0;
+  for (const auto& [a, b] : candidate_pairs) {
+    if (ahead && (objects_[a]->dynamic() || objects_[b]->dynamic())) continue;
+    if (!ahead) ++stats_.object_pairs_tested;
+    if (reusable && unchanged(a) && unchanged(b)) {
+      if (!ahead) ++stats_.object_pairs_reused;
+      reusePreviousContacts(a, b, cursor);
+    } else {
+      queryPair(level, a, b, contacts_, &contact_runs_);
+    }
+  }
+  revisions_detected_ = revisions_;
+  previous_level_ = level;
+}
+
+void Scene::reusePreviousContacts(std::uint32_t first, std::uint32_t second, std::size_t& cursor) {
+  const auto before_pair = [&](const ContactRun& run) {
+    return run.object_a < first || (run.object_a == first && run.object_b < second);
+  };
+  while (cursor < previous_runs_.size() && before_pair(previous_runs_[cursor])) ++cursor;
+  if (cursor == previous_runs_.size()) return;
+  const ContactRun& previous = previous_runs_[cursor];
+  // No run: the pair had no contacts.
+  if (previous.object_a != first || previous.object_b != second) return;
+  const std::size_t begin = contacts_.size();
+  contacts_.insert(contacts_.end(), previous_contacts_.begin() + previous.begin,
+                   previous_contacts_.begin() + previous.end);
+  contact_runs_.push_back({first, second, begin, contacts_.size()});
+}
+
+}  // namespace deformable_collision
