@@ -1,10 +1,14 @@
 #!/usr/bin/python3
-"""Writes the benchmark report from the CSV files of scripts/run_benchmarks.
+"""Writes the benchmark report from the files of scripts/run_benchmarks.
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s2_auto.csv,
 s2_rest.csv, s3.csv, baselines.csv, memory.csv and registration.txt there; writes s1.md,
-s2.md, s3.md, memory.md, summary.md (the targets, met or not) and the plots
-s1_time_vs_points.png, s2_error_vs_time.png, registration_error_vs_time.png.
+s2.md, s3.md, memory.md, registration.md, summary.md (headline figures and the targets, met
+or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
+registration_error_vs_time.png. When RESULTS_DIR is the package's bench/results, it also
+writes docs/benchmarks.md (bench/benchmarks_intro.md, then those tables and plots, and
+latency.md of make latency if there) and the headline table between README.md's results
+markers, if it has them.
 Run by Debian's python3 (python3-matplotlib).
 """
 import csv
@@ -371,38 +375,119 @@ def memory_report(results):
 
 
 REGISTRATION_LINE = re.compile(
-    r"method (?P<method>\S+)(?P<truth> cloud truth)? .*?mode (?P<mode>\S+) .*?(?:iterations (?P<iterations>\d+)|static) "
-    r"cloud_points (?P<cloud_points>\d+) .*\| seen mean (?P<seen>[\d.]+) max [\d.]+ "
+    r"method (?P<method>\S+)(?P<truth> cloud truth)? points (?P<points>\d+) frames (?P<frames>\d+) "
+    r"mode (?P<mode>\S+) clusters (?P<clusters>\d+) (?:iterations (?P<iterations>\d+)|static) "
+    r"cloud_points (?P<cloud_points>\d+) model_points \d+ \| seen mean (?P<seen>[\d.]+) max [\d.]+ "
     r"off surface (?P<seen_off>[\d.]+) mm \| hidden mean (?P<hidden>[\d.]+) max [\d.]+ "
-    r"off surface (?P<hidden_off>[\d.]+) mm \| registration (?P<ms>[\d.]+) ms")
+    r"off surface (?P<hidden_off>[\d.]+) mm \| registration (?P<ms>[\d.]+) ms \(worst (?P<worst_ms>[\d.]+)\)"
+    r".*contacts: coverage (?P<coverage>[\d.]+) mm .*missed (?P<missed>\d+) and spurious \d+ "
+    r"of (?P<touched>\d+) jaw-frames")
+# config/camera_gripper.yaml's rounds and cloud points, which run_benchmarks' comparison runs use.
+REGISTRATION_DEFAULTS = ("5", "2000")
 
 
-def registration_plot(results):
-    """Error against time per cloud of bench_registration's lines: ours over the work per
-    cloud (one point per rounds x cloud points), PCL's ICP, and the bounds as lines."""
-    with open(os.path.join(results, "registration.txt")) as f:
+def registration_kind(row, sweep_seen):
+    """What one line of registration.txt measures. A line of ours does not say whether the
+    jaws' points were kept: run_benchmarks repeats one setting of its sweep for that alone,
+    after the sweep, so a repeated setting is the run that keeps them."""
+    if row["method"] == "pcl_icp":
+        return "pcl_icp", "PCL rigid ICP, whole object"
+    if row["method"] == "pcl_icp_clusters":
+        return "pcl_icp_clusters", "PCL rigid ICP, per cluster"
+    if row["method"] == "model_limit":
+        return "limit", f"the model's best fit to the truth, {row['mode']} (bound)"
+    if row["method"] != "ours":
+        return row["method"], row["method"]
+    if not row["iterations"]:
+        return "rest", "rest model left in place (bound)"
+    if row["truth"]:
+        return "truth", "ours, the seen ground truth as the cloud"
+    setting = (row["iterations"], row["cloud_points"])
+    if setting in sweep_seen:
+        return "jaws_kept", "ours, the jaws' points kept"
+    sweep_seen.add(setting)
+    defaults = " (as config/camera_gripper.yaml)" if setting == REGISTRATION_DEFAULTS else ""
+    rounds = "1 round" if setting[0] == "1" else f"{setting[0]} rounds"
+    return "sweep", f"ours, {rounds}, {setting[1]} cloud points{defaults}"
+
+
+def read_registration(results):
+    """The lines of bench_registration in registration.txt, each with its kind and label;
+    none if the file is not there."""
+    path = os.path.join(results, "registration.txt")
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
         rows = [m.groupdict() for m in map(REGISTRATION_LINE.search, f) if m]
+    sweep_seen = set()
+    for r in rows:
+        r["kind"], r["label"] = registration_kind(r, sweep_seen)
+    return rows
+
+
+def registration_defaults(rows):
+    """Ours at config/camera_gripper.yaml's settings (None if not run)."""
+    return next((r for r in rows if r["kind"] == "sweep"
+                 and (r["iterations"], r["cloud_points"]) == REGISTRATION_DEFAULTS), None)
+
+
+def registration_report(results, rows):
+    """registration.md, every line of registration.txt, and its plot."""
+    first = rows[0]
+    text = "# Registration of depth-camera clouds\n\n"
+    text += (f"`bench_registration` registers the camera_gripper sponge ({first['points']} model "
+             f"points, {first['mode']} shape matching, {first['clusters']} clusters) to "
+             f"{first['frames']} clouds of its virtual depth camera over one squeeze, bend and "
+             "release, and scores every model point against the ground truth of the same material "
+             "point, on the side the camera sees and on the hidden side. Errors in mm, means over "
+             "the clouds: the mean error, and its part off the surface (along the true surface "
+             "normal; the rest is a slide along the surface). Time: the registration per cloud, "
+             "mean and worst. Contacts: the registered model and the two jaws in a scene of their "
+             "own against the same scene given the ground truth; per jaw and frame, the largest "
+             "distance from a true contact to the nearest of the model's, mean over the "
+             "jaw-frames that touch in truth, and how many of those the model missed.\n\n"
+             "Bounds: the rest model left in place, and each cluster's least-squares fit to the "
+             "ground truth of all its points, which no registration can beat. Ours: "
+             "`Scene::registerCloud` with the jaws posed before each cloud, as in the node, over "
+             "the rounds and the cloud points kept per cloud; given the ground truth's seen "
+             "points as its cloud (no noise, outliers or holes); and keeping the cloud's points "
+             "near the jaws. PCL's rigid ICP on the same thinned clouds and rounds: the cloud "
+             "aligned to the whole rest model, or to each cluster alone.\n\n")
+    text += table(["run", "seen", "seen, off surface", "hidden", "hidden, off surface",
+                   "ms per cloud (worst)", "contact coverage mm", "jaw-frames missed"],
+                  [(r["label"], r["seen"], r["seen_off"], r["hidden"], r["hidden_off"],
+                    "-" if r["kind"] in ("rest", "limit") else f"{r['ms']} ({r['worst_ms']})",
+                    r["coverage"], f"{r['missed']} of {r['touched']}") for r in rows])
+    write(results, "registration.md", text)
+    registration_plot(results, rows)
+
+
+def registration_plot(results, rows):
+    """Error against time per cloud: ours over the work per cloud (one point per rounds x
+    cloud points), the other runs of ours and PCL's whole-object ICP as points of their own,
+    the bounds as lines. PCL's per-cluster ICP is left out: its error is off the scale."""
+    points = {"pcl_icp": ("grey", "PCL rigid ICP"), "truth": ("C2", "ours given the seen truth"),
+              "jaws_kept": ("C5", "ours keeping the jaws' points")}
+    sweep = [r for r in rows if r["kind"] == "sweep"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.5), sharey=True)
     for ax, side in ((axes[0], "seen"), (axes[1], "hidden")):
         for key, style, label in ((side, "o", "material point"), (side + "_off", "s", "off the surface")):
-            ours = [r for r in rows if r["method"] == "ours" and r["iterations"] and not r["truth"]]
-            ax.plot([float(r["ms"]) for r in ours], [float(r[key]) for r in ours], style,
+            ax.plot([float(r["ms"]) for r in sweep], [float(r[key]) for r in sweep], style,
                     label=f"ours, {label}")
-            for r in ours:
+            for r in sweep:
                 ax.annotate(f"{r['iterations']}x{r['cloud_points']}", (float(r["ms"]), float(r[key])),
                             textcoords="offset points", xytext=(3, 3), fontsize=6)
+            color = "C3" if key == side else "C4"
             for r in rows:
-                if r["method"] == "pcl_icp":
-                    ax.plot(float(r["ms"]), float(r[key]), style, color="grey",
-                            label=f"PCL rigid ICP, {label}")
-                if r["method"] == "ours" and r["truth"]:
-                    ax.plot(float(r["ms"]), float(r[key]), style, color="C2",
-                            label=f"ours given the seen truth, {label}")
-                if r["method"] == "ours" and not r["iterations"]:
-                    ax.axhline(float(r[key]), linestyle="--", linewidth=0.8, color="C3" if key == side else "C4",
+                if r["kind"] in points:
+                    point_color, name = points[r["kind"]]
+                    ax.plot(float(r["ms"]), float(r[key]), style, color=point_color,
+                            label=f"{name}, {label}")
+                if r["kind"] == "rest":
+                    ax.axhline(float(r[key]), linestyle="--", linewidth=0.8, color=color,
                                label=f"rest model left in place, {label}")
-                if r["method"] == "model_limit" and r["mode"] == "linear":
-                    ax.axhline(float(r[key]), linestyle=":", linewidth=0.8, color="C3" if key == side else "C4",
+                if r["kind"] == "limit" and r["mode"] == "linear":
+                    ax.axhline(float(r[key]), linestyle=":", linewidth=0.8, color=color,
                                label=f"the model's best fit to the truth, {label}")
         ax.set_xscale("log")
         ax.set_xlabel("registration, ms per cloud (rounds x cloud points)")
@@ -443,7 +528,8 @@ def auto_target(auto):
             "**met**" if within >= 0.95 and most > 1 else "**not met**")
 
 
-def summary(results, sizes, ms, methods, s2_rows, s3):
+def targets_table(results, sizes, ms, methods, s2_rows, s3):
+    """The issue's targets, met or not."""
     largest, smallest = sizes[-1], sizes[0]
     near = {(p, m): v for (d, p, m), v in ms.items() if d == NEAR_MISS_M}
     ours = near[(largest, OURS)]
@@ -456,28 +542,134 @@ def summary(results, sizes, ms, methods, s2_rows, s3):
     def verdict(ok):
         return "**met**" if ok else "**not met**"
 
-    lines = [
-        "# Targets\n",
-        table(["target", "measured", "verdict"], [
-            peer_target(ms, methods, NEAR_MISS_M, largest, 10),
-            peer_target(ms, methods, NEAR_MISS_M, largest, 50),
-            peer_target(ms, methods, DENSE_M, largest, 10),
-            (f"S1 near miss at {largest // 1000}k points: >= 10x faster than the full refit",
-             f"full_refit {near[(largest, 'full_refit')]:.3f} ms: {refit_factor:.1f}x", verdict(refit_factor >= 10)),
-            (f"S1 near miss: time at {largest // 1000}k / time at {smallest // 1000}k <= 3",
-             f"{ours:.3f} / {near[(smallest, OURS)]:.3f} ms = {growth:.1f} "
-             f"(full_refit {near[(largest, 'full_refit')] / near[(smallest, 'full_refit')]:.1f})",
-             verdict(growth <= 3)),
-            (f"S2 finest level ({finest['level']}): detection + response <= 10 ms",
-             f"{float(finest['detection_ms']):.2f} + {float(finest['response_ms']):.2f} = {finest_total:.2f} ms",
-             verdict(finest_total <= 10)),
-            *s2_level_targets(s2_rows, read(results, "s2_rest.csv")),
-            auto_target(read(results, "s2_auto.csv")[0]),
-            ("S3: whole cycle <= 1 ms", f"{s3_cycle:.3f} ms (with the PointCloud2 conversion)",
-             verdict(s3_cycle <= 1)),
-        ]),
-    ]
-    write(results, "summary.md", "\n".join(lines))
+    return table(["target", "measured", "verdict"], [
+        peer_target(ms, methods, NEAR_MISS_M, largest, 10),
+        peer_target(ms, methods, NEAR_MISS_M, largest, 50),
+        peer_target(ms, methods, DENSE_M, largest, 10),
+        (f"S1 near miss at {largest // 1000}k points: >= 10x faster than the full refit",
+         f"full_refit {near[(largest, 'full_refit')]:.3f} ms: {refit_factor:.1f}x", verdict(refit_factor >= 10)),
+        (f"S1 near miss: time at {largest // 1000}k / time at {smallest // 1000}k <= 3",
+         f"{ours:.3f} / {near[(smallest, OURS)]:.3f} ms = {growth:.1f} "
+         f"(full_refit {near[(largest, 'full_refit')] / near[(smallest, 'full_refit')]:.1f})",
+         verdict(growth <= 3)),
+        (f"S2 finest level ({finest['level']}): detection + response <= 10 ms",
+         f"{float(finest['detection_ms']):.2f} + {float(finest['response_ms']):.2f} = {finest_total:.2f} ms",
+         verdict(finest_total <= 10)),
+        *s2_level_targets(s2_rows, read(results, "s2_rest.csv")),
+        auto_target(read(results, "s2_auto.csv")[0]),
+        ("S3: whole cycle <= 1 ms", f"{s3_cycle:.3f} ms (with the PointCloud2 conversion)",
+         verdict(s3_cycle <= 1)),
+    ])
+
+
+def s1_headline(ms, methods, distance, points, against):
+    """Ours against the best peer (against=None) or against one of our variants, in S1."""
+    ours = ms[(distance, points, OURS)]
+    other = against or best_peer(ms, distance, points, methods)
+    what = f"the {other.replace('_', ' ')}" if against else "the best peer"
+    return (f"S1 {s1_case_name(distance)}, {points // 1000}k points: ours against {what}",
+            f"{ours:.3f} ms against {other} {ms[(distance, points, other)]:.3f} ms: "
+            f"{ms[(distance, points, other)] / ours:.1f}x faster")
+
+
+def headline_table(sizes, ms, methods, s2_rows, s3, registration):
+    """The few figures README shows; the targets table holds the rest."""
+    largest = sizes[-1]
+    finest = s2_rows[-1]
+    finest_total = float(finest["total_ms"])
+    level2 = next((r for r in s2_rows if r["level"] == "2"), None)
+    rows = [s1_headline(ms, methods, NEAR_MISS_M, largest, None),
+            s1_headline(ms, methods, NEAR_MISS_M, largest, "full_refit"),
+            s1_headline(ms, methods, DENSE_M, largest, None),
+            (f"S2 pile, finest level ({finest['level']}): detection + response",
+             f"{float(finest['detection_ms']):.2f} + {float(finest['response_ms']):.2f} = "
+             f"{finest_total:.2f} ms")]
+    if level2:
+        rows.append(("S2 pile, level 2: detection + response against the finest level's",
+                     f"{float(level2['total_ms']):.2f} / {finest_total:.2f} ms = "
+                     f"{float(level2['total_ms']) / finest_total:.2f}"))
+    rows.append(("S3 whole cycle, with the PointCloud2 conversion", f"{s3['whole_cycle']:.3f} ms"))
+    ours = registration_defaults(registration)
+    rest = next((r for r in registration if r["kind"] == "rest"), None)
+    if ours:
+        rows.append((f"Registration of the squeezed sponge, {ours['iterations']} rounds x "
+                     f"{ours['cloud_points']} cloud points: mean error seen / hidden side",
+                     f"{ours['seen']} / {ours['hidden']} mm at {ours['ms']} ms per cloud" +
+                     (f" (rest model left in place: {rest['seen']} / {rest['hidden']} mm)" if rest else "")))
+    return table(["figure", "this run"], rows)
+
+
+def summary(results, headline, targets):
+    """summary.md: the headline figures, then the targets."""
+    write(results, "summary.md",
+          "# Summary\n\n## Headline\n\n" + headline + "\n## Targets\n\n" + targets)
+
+
+PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+INTRO = os.path.join(PACKAGE, "bench", "benchmarks_intro.md")
+DOC = os.path.join(PACKAGE, "docs", "benchmarks.md")
+README = os.path.join(PACKAGE, "README.md")
+README_BLOCK = re.compile(r"^<!-- results:begin \(written by bench/report\.py\) -->\n(.*?)"
+                          r"^<!-- results:end -->$", re.S | re.M)
+
+
+def demoted(text):
+    """The markdown one heading level down, to sit under the page's title; code blocks kept."""
+    lines, in_code = [], False
+    for line in text.splitlines():
+        in_code ^= line.startswith("```")
+        lines.append("#" + line if line.startswith("#") and not in_code else line)
+    return "\n".join(lines) + "\n"
+
+
+def doc_section(results, name, note="", plot=None):
+    """One markdown file of the results under its own heading, with a link to it, a note
+    and its plot."""
+    with open(os.path.join(results, name)) as f:
+        heading, body = demoted(f.read()).split("\n", 1)
+    text = f"{heading} ([{name}](../bench/results/{name}))\n\n" + (note + "\n\n" if note else "")
+    text += body.lstrip("\n")
+    if plot:
+        text += f"\n![{plot}](../bench/results/{plot})\n"
+    return text
+
+
+def benchmarks_doc(results, registration):
+    """docs/benchmarks.md: the fixed introduction, then every table and plot of this run."""
+    sections = [doc_section(results, "summary.md"),
+                doc_section(results, "s1.md", plot="s1_time_vs_points.png"),
+                doc_section(results, "s2.md", plot="s2_error_vs_time.png"),
+                doc_section(results, "s3.md")]
+    if registration:
+        sections.append(doc_section(results, "registration.md",
+                                    plot="registration_error_vs_time.png"))
+    sections.append(doc_section(results, "memory.md"))
+    if os.path.exists(os.path.join(results, "latency.md")):
+        sections.append(doc_section(results, "latency.md", note=(
+            "Written by `make latency` (`scripts/run_latency`), not by `make bench`: from its own "
+            "run, at another time than the tables above.")))
+    with open(INTRO) as f:
+        intro = f.read()
+    with open(DOC, "w") as f:
+        f.write("<!-- Generated by bench/report.py from bench/results/ (make bench): do not edit "
+                "by hand. -->\n" + intro + "\n" + "\n".join(sections))
+
+
+def readme_block(headline):
+    """Puts the headline table between README's results markers; False, and README left
+    alone, without them."""
+    with open(README) as f:
+        text = f.read()
+    match = README_BLOCK.search(text)
+    if not match:
+        return False
+    block = (headline + "\nFull report: `bench/results/summary.md` and "
+             "[docs/benchmarks.md](docs/benchmarks.md), written by `make bench`.\n")
+    new = text[:match.start(1)] + block + text[match.end(1):]
+    if new != text:
+        with open(README, "w") as f:
+            f.write(new)
+    return True
 
 
 def main():
@@ -486,13 +678,25 @@ def main():
     s2_rows = s2_report(results)
     s3 = s3_report(results)
     memory_report(results)
-    registration_plot(results)
-    summary(results, sizes, ms, methods, s2_rows, s3)
-    for name in ("summary.md", "s1.md", "s2.md", "s3.md", "memory.md"):
+    registration = read_registration(results)
+    if registration:
+        registration_report(results, registration)
+    headline = headline_table(sizes, ms, methods, s2_rows, s3, registration)
+    summary(results, headline, targets_table(results, sizes, ms, methods, s2_rows, s3))
+    for name in ["summary.md", "s1.md", "s2.md", "s3.md", "memory.md"] + \
+            (["registration.md"] if registration else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
     print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "
           "registration_error_vs_time.png)")
+    # The page and README link to bench/results/: a run on another directory leaves them alone.
+    if os.path.realpath(results) != os.path.realpath(os.path.join(PACKAGE, "bench", "results")):
+        print(f"report: {results} is not bench/results; docs/benchmarks.md and README.md left alone")
+        return
+    benchmarks_doc(results, registration)
+    print("report: docs/benchmarks.md written")
+    if not readme_block(headline):
+        print("report: README.md has no results markers; left alone")
 
 
 if __name__ == "__main__":
