@@ -14,8 +14,6 @@ namespace {
 
 /// At most one report per problem in this period.
 constexpr double kThrottlePeriodS = 5.0;
-/// The latency figures of ~stats summarise periods at least this long.
-constexpr std::chrono::seconds kLatencyPeriod(1);
 /// dt_s: stamp: the longest step, the top of dt_s's range.
 constexpr double kLargestStepS = 0.1;
 /// The cycle thread's wait when nothing is due; a wake-up (a cloud, a service call, the
@@ -35,11 +33,6 @@ NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   NodeConfig config = parseNodeConfig(params, warnings);
   for (const std::string& warning : warnings) ROS_WARN("%s", warning.c_str());
   return config;
-}
-
-double millisecondsBetween(std::chrono::steady_clock::time_point from,
-                           std::chrono::steady_clock::time_point to) {
-  return std::chrono::duration<double, std::milli>(to - from).count();
 }
 
 /// Queued on the cycle's queue to end its wait; the cycle then looks at what came.
@@ -77,7 +70,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
       cycle_period_(std::chrono::duration_cast<Clock::duration>(
           std::chrono::duration<double>(1.0 / config_.rate_hz))),
       cycle_wait_(kIdleWait),
-      latency_period_start_(Clock::now()),
+      outputs_(Clock::now(), cycle_period_),
       reader_spinner_(1, &reader_queue_) {
   for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
   taken_slots_.reserve(slots_.size());
@@ -86,6 +79,21 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
   models_waiting_ = std::any_of(slots_.begin(), slots_.end(),
                                 [](const ObjectSlot& slot) { return !slot.model_points.empty(); });
 
+  connect();
+  ROS_INFO(
+      "deformable_collision: %zu objects, cycles on %s%s at %s%.1f Hz, dt %s%.4f s, contact "
+      "distance %.4f m, fixed frame '%s'",
+      slots_.size(), toString(config_.cycle_on), config_.cycle_on_all ? " (all objects')" : "",
+      config_.cycle_on == CycleOn::kClouds ? "most " : "", config_.rate_hz,
+      config_.dt_from_stamps ? "from the stamps, first " : "", config_.scene.dt_s,
+      config_.scene.contact_distance_m, config_.fixed_frame.c_str());
+  reader_spinner_.start();
+  cycle_thread_ = std::thread(&DeformableCollisionNode::cycleLoop, this);
+}
+
+// Outputs and services go on the cycle's queue, the clouds and their tf retries on the
+// reader's.
+void DeformableCollisionNode::connect() {
   ros::NodeHandle reader_handle(node_handle_);
   reader_handle.setCallbackQueue(&reader_queue_);
   ros::NodeHandle cycle_handle(node_handle_);
@@ -93,10 +101,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
   ros::NodeHandle cycle_private_handle(private_handle_);
   cycle_private_handle.setCallbackQueue(&cycle_queue_);
   // Advertised on the cycle's queue, so that the cycle alone counts their subscribers.
-  contacts_publisher_.advertise<ContactArray>(cycle_private_handle, "contacts", 10);
-  hierarchy_publisher_.advertise<visualization_msgs::MarkerArray>(cycle_private_handle, "hierarchy",
-                                                                  1);
-  stats_publisher_.advertise<Stats>(cycle_private_handle, "stats", 10);
+  outputs_.advertise(cycle_private_handle);
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     ObjectSlot& slot = slots_[i];
     named_objects_.push_back({slot.params.object.name, std::nullopt});
@@ -109,9 +114,9 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
         boost::bind(&DeformableCollisionNode::onCloud, this, boost::placeholders::_1, i),
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
   }
-  retry_timer_ = reader_handle.createWallTimer(
-      ros::WallDuration(1.0 / config_.rate_hz),
-      [this](const ros::WallTimerEvent&) { retryAwaitingClouds(); });
+  retry_timer_ =
+      reader_handle.createWallTimer(ros::WallDuration(1.0 / config_.rate_hz),
+                                    [this](const ros::WallTimerEvent&) { retryAwaitingClouds(); });
   set_level_service_ = cycle_private_handle.advertiseService(
       "set_level", &DeformableCollisionNode::onSetLevel, this);
   get_contacts_service_ = cycle_private_handle.advertiseService(
@@ -120,14 +125,6 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
     timer_ = cycle_handle.createTimer(ros::Duration(1.0 / config_.rate_hz),
                                       &DeformableCollisionNode::onTimer, this);
   }
-  ROS_INFO("deformable_collision: %zu objects, cycles on %s%s at %s%.1f Hz, dt %s%.4f s, contact "
-           "distance %.4f m, fixed frame '%s'",
-           slots_.size(), toString(config_.cycle_on), config_.cycle_on_all ? " (all objects')" : "",
-           config_.cycle_on == CycleOn::kClouds ? "most " : "", config_.rate_hz,
-           config_.dt_from_stamps ? "from the stamps, first " : "", config_.scene.dt_s,
-           config_.scene.contact_distance_m, config_.fixed_frame.c_str());
-  reader_spinner_.start();
-  cycle_thread_ = std::thread(&DeformableCollisionNode::cycleLoop, this);
 }
 
 DeformableCollisionNode::~DeformableCollisionNode() {
@@ -139,7 +136,8 @@ DeformableCollisionNode::~DeformableCollisionNode() {
 
 void DeformableCollisionNode::cycleLoop() {
   while (!stopping_) {
-    cycle_queue_.callAvailable(ros::WallDuration(std::chrono::duration<double>(cycle_wait_).count()));
+    cycle_queue_.callAvailable(
+        ros::WallDuration(std::chrono::duration<double>(cycle_wait_).count()));
     if (config_.cycle_on == CycleOn::kClouds && !stopping_) cycleOnClouds();
   }
 }
@@ -171,9 +169,11 @@ void DeformableCollisionNode::cycleOnClouds() {
     detectAheadLogged();
     now = Clock::now();
   }
-  if (ready) cycle_wait_ = std::max(Clock::duration::zero(), *last_cycle_start_ + cycle_period_ - now);
+  if (ready)
+    cycle_wait_ = std::max(Clock::duration::zero(), *last_cycle_start_ + cycle_period_ - now);
   if (last_early_application_) {
-    cycle_wait_ = std::min(cycle_wait_, *last_early_application_ + kQuietBeforeDetectingAhead - now);
+    cycle_wait_ =
+        std::min(cycle_wait_, *last_early_application_ + kQuietBeforeDetectingAhead - now);
   }
 }
 
@@ -235,7 +235,8 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
     const geometry_msgs::TransformStamped stamped =
         tf_buffer_.lookupTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0));
     pose = toIsometry(stamped.transform);
-    if (!pose) throw std::invalid_argument("the pose of " + slot.params.follow_frame + " is not finite");
+    if (!pose)
+      throw std::invalid_argument("the pose of " + slot.params.follow_frame + " is not finite");
   }
   if (!slot.index) {
     addObject(slot, cloud);
@@ -267,15 +268,16 @@ void DeformableCollisionNode::addObject(ObjectSlot& slot, ReadCloud& cloud) {
 }
 
 void DeformableCollisionNode::warnIfPorous(const std::string& name,
-                                            const std::vector<Eigen::Vector3d>& points) const {
+                                           const std::vector<Eigen::Vector3d>& points) const {
   // Against a dense cloud a sparse one still shows contacts; two clouds sparser than this
   // can cross without a single pair of points coming within the contact distance.
   const double spacing = typicalPointSpacing(points);
   if (spacing > 2.0 * config_.scene.contact_distance_m) {
-    ROS_WARN("object '%s': its points are about %.4f m apart, more than twice "
-             "contact_distance_m = %.4f m, so clouds as sparse can pass between them; raise "
-             "contact_distance_m towards the spacing", name.c_str(), spacing,
-             config_.scene.contact_distance_m);
+    ROS_WARN(
+        "object '%s': its points are about %.4f m apart, more than twice "
+        "contact_distance_m = %.4f m, so clouds as sparse can pass between them; raise "
+        "contact_distance_m towards the spacing",
+        name.c_str(), spacing, config_.scene.contact_distance_m);
   }
 }
 
@@ -321,29 +323,11 @@ void DeformableCollisionNode::runCycle() {
   followFrames();
   scene_.cycle();
   times.cycled = Clock::now();
-  const CycleStats& cycle = scene_.stats();
-
-  if (contacts_publisher_.subscribed()) {
-    // Once published, the message is roscpp's to serialise (before publish() returns) and a
-    // subscriber's in this process to keep: if none kept it, its contacts and their names
-    // are written over instead of allocated anew (16k contacts a cycle in the load test).
-    if (!contacts_message_ || contacts_message_.use_count() > 1) {
-      contacts_message_ = boost::make_shared<ContactArray>();
-    }
-    contacts_message_->header = header;
-    fillContactArray(scene_, scene_.contacts(), cycle.level, *contacts_message_);
-    contacts_publisher_.publish(contacts_message_);
-  }
+  outputs_.publishContacts(scene_, header);
   times.contacts_published = Clock::now();
   times.contacts_published_ros = ros::Time::now();
   const std::optional<Clock::time_point> oldest_input = recordLatencies(times);
-
-  if (hierarchy_publisher_.subscribed() && scene_.objectCount() > 0) {
-    auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
-    markers_.build(scene_, cycle.level, scene_.contacts(), config_.markers_colliding_only, header,
-                   *markers);
-    hierarchy_publisher_.publish(markers);
-  }
+  outputs_.publishMarkers(scene_, config_.markers_colliding_only, header);
   const std::size_t points = publishDeformed(header);
   times.published = Clock::now();
   publishStats(header, times, oldest_input, points);
@@ -352,7 +336,8 @@ void DeformableCollisionNode::runCycle() {
 ros::Time DeformableCollisionNode::newestAppliedStamp() const {
   ros::Time newest;
   for (const std::size_t index : applied_slots_) {
-    if (slots_[index].params.object.kind == ObjectKind::kTracked) newest = std::max(newest, applied_[index].stamp);
+    if (slots_[index].params.object.kind == ObjectKind::kTracked)
+      newest = std::max(newest, applied_[index].stamp);
   }
   return newest;
 }
@@ -372,19 +357,10 @@ std::optional<DeformableCollisionNode::Clock::time_point> DeformableCollisionNod
   for (const std::size_t index : applied_slots_) {
     const AppliedCloud& cloud = applied_[index];
     if (!oldest_input || cloud.arrival < *oldest_input) oldest_input = cloud.arrival;
-    arrival_latency_.add(millisecondsBetween(cloud.arrival, times.contacts_published));
-    if (!cloud.stamp.isZero()) {
-      stamp_latency_.add(1e3 * (times.contacts_published_ros - cloud.stamp).toSec());
-    }
+    outputs_.latencies().add(cloud.arrival, cloud.stamp, times.contacts_published,
+                             times.contacts_published_ros);
   }
-  const Clock::duration period = times.contacts_published - latency_period_start_;
-  if (period >= kLatencyPeriod) {
-    arrival_summary_ = arrival_latency_.close();
-    stamp_summary_ = stamp_latency_.close();
-    latency_period_s_ = std::chrono::duration<double>(period).count();
-    ++latency_periods_;
-    latency_period_start_ = times.contacts_published;
-  }
+  outputs_.latencies().closePeriodIfDue(times.contacts_published);
   return oldest_input;
 }
 
@@ -397,8 +373,9 @@ std::size_t DeformableCollisionNode::publishDeformed(const std_msgs::Header& hea
     if (!slot.deformed.subscribed()) continue;
     auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
     cloud->header = header;
-    writeCloudPoints(positions, *cloud,
-                     slot.float64 ? sensor_msgs::PointField::FLOAT64 : sensor_msgs::PointField::FLOAT32);
+    writeCloudPoints(
+        positions, *cloud,
+        slot.float64 ? sensor_msgs::PointField::FLOAT64 : sensor_msgs::PointField::FLOAT32);
     slot.deformed.publish(cloud);
   }
   return points;
@@ -407,58 +384,13 @@ std::size_t DeformableCollisionNode::publishDeformed(const std_msgs::Header& hea
 void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const CycleTimes& times,
                                            std::optional<Clock::time_point> oldest_input,
                                            std::size_t points) {
-  const CycleStats& cycle = scene_.stats();
-  Stats& stats = stats_message_;
-  // Cycles and overruns count whether or not anyone listens: a later subscriber sees all.
-  ++stats.cycles;
-  if (times.published - times.start > cycle_period_) {
-    ++stats.overruns;
-    // The input made the cycle late if the rest of the cycle kept to the period.
-    if (times.published - times.clouds_applied <= cycle_period_) ++stats.overruns_from_input;
-  }
-  if (!stats_publisher_.subscribed()) return;
-  stats.header = header;
-  stats.level = static_cast<std::uint8_t>(cycle.level);
-  stats.max_level = static_cast<std::uint8_t>(scene_.maxLevel());
-  stats.level_auto = cycle.level_auto;
-  stats.cycle_budget_ms = cycle.cycle_budget_ms;
-  stats.input_ms = millisecondsBetween(times.start, times.clouds_applied);
-  stats.shape_matching_ms = cycle.shape_matching_ms;
-  stats.detection_ms = cycle.detection_ms;
-  stats.detection_ahead_ms = cycle.detection_ahead_ms;
-  stats.response_ms = cycle.response_ms;
-  stats.publish_ms = millisecondsBetween(times.cycled, times.published);
-  stats.cycle_ms = millisecondsBetween(times.start, times.published);
-  stats.input_latency_ms =
-      oldest_input ? millisecondsBetween(*oldest_input, times.contacts_published) : 0.0;
-  fillLatencyStats(stats);
-  stats.objects = static_cast<std::uint32_t>(scene_.objectCount());
-  stats.points = static_cast<std::uint32_t>(points);
-  stats.objects_moved = static_cast<std::uint32_t>(cycle.objects_moved);
-  stats.object_pairs_tested = static_cast<std::uint32_t>(cycle.object_pairs_tested);
-  stats.object_pairs_reused = static_cast<std::uint32_t>(cycle.object_pairs_reused);
-  stats.spheres_updated = static_cast<std::uint32_t>(cycle.spheres_updated);
-  stats.node_pairs_tested = static_cast<std::uint32_t>(cycle.node_pairs_tested);
-  stats.point_tests = static_cast<std::uint32_t>(cycle.point_tests);
-  stats.contacts = static_cast<std::uint32_t>(cycle.contacts);
-  stats.clouds_received = clouds_received_;
-  stats.clouds_rejected = clouds_rejected_;
-  stats.clouds_coalesced = handoff_.coalesced() + clouds_superseded_;
-  stats.non_finite_points = non_finite_points_;
-  fillRegistrationStats(stats);
-  stats_publisher_.publish(stats);
-}
-
-void DeformableCollisionNode::fillLatencyStats(Stats& stats) const {
-  stats.latency_periods = latency_periods_;
-  stats.latency_period_s = latency_period_s_;
-  stats.latency_clouds = arrival_summary_.count;
-  stats.arrival_latency_mean_ms = arrival_summary_.mean_ms;
-  stats.arrival_latency_p99_ms = arrival_summary_.p99_ms;
-  stats.arrival_latency_max_ms = arrival_summary_.max_ms;
-  stats.stamp_latency_mean_ms = stamp_summary_.mean_ms;
-  stats.stamp_latency_p99_ms = stamp_summary_.p99_ms;
-  stats.stamp_latency_max_ms = stamp_summary_.max_ms;
+  NodeOutputs::InputCounts counts;
+  counts.clouds_received = clouds_received_;
+  counts.clouds_rejected = clouds_rejected_;
+  counts.clouds_coalesced = handoff_.coalesced() + clouds_superseded_;
+  counts.non_finite_points = non_finite_points_;
+  outputs_.publishStats(scene_, header, times, oldest_input, points, counts,
+                        [this](Stats& stats) { fillRegistrationStats(stats); });
 }
 
 bool DeformableCollisionNode::onSetLevel(SetLevel::Request& request, SetLevel::Response& response) {

@@ -5,7 +5,6 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
-#include <visualization_msgs/MarkerArray.h>
 
 #include <atomic>
 #include <chrono>
@@ -17,17 +16,15 @@
 #include <thread>
 #include <vector>
 
-#include "deformable_collision/ContactArray.h"
-#include "deformable_collision/Stats.h"
 #include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
+#include "deformable_collision/Stats.h"
 #include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/ros/cloud_handoff.h"
 #include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/counted_publisher.h"
-#include "deformable_collision/ros/hierarchy_markers.h"
-#include "deformable_collision/ros/latency_window.h"
 #include "deformable_collision/ros/node_config.h"
+#include "deformable_collision/ros/node_outputs.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace deformable_collision {
@@ -42,8 +39,7 @@ namespace deformable_collision {
 /// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles, the
 ///   services and the outputs' connect and disconnect callbacks (CountedPublisher). It
 ///   alone touches scene_, the cycle members of slots_ (index, poses, model, registration,
-///   the deformed publisher's count), taken_, markers_, the latency
-///   windows, stats_message_ and contacts_message_.
+///   the deformed publisher's count), taken_ and outputs_.
 /// Between them: handoff_ (its own mutex), the atomics of slots_ and of the node (counters,
 /// the wake-up flag), and the drop reports (report_mutex_). tf_buffer_ is thread-safe and
 /// filled by the listener's own thread. Everything else is set in the constructor and only
@@ -74,7 +70,7 @@ class DeformableCollisionNode {
     std::optional<Clock::time_point> last_report;
     std::size_t drops_unreported = 0;
     // The cycle's.
-    std::optional<std::size_t> index;  ///< In the scene, once a cloud set its rest shape.
+    std::optional<std::size_t> index;            ///< In the scene, once a cloud set its rest shape.
     std::optional<Eigen::Isometry3d> last_pose;  ///< Kinematic objects.
     bool float64 = false;  ///< ~deformed/<object> in FLOAT64, like the last cloud.
     /// on_cloud register: model_file's points in model_frame until tf places them, the last
@@ -158,6 +154,8 @@ class DeformableCollisionNode {
   void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
   /// Reads every model_file, so that a bad one stops the node at start, naming the object.
   /// @throw std::invalid_argument
+  /// Advertises the outputs and services, subscribes to the clouds, starts the timers.
+  void connect();
   void loadModels();
   /// Creates the object of a slot from its model file at model_frame's latest pose, once tf
   /// has it; whether the object exists.
@@ -175,15 +173,7 @@ class DeformableCollisionNode {
   /// read meanwhile applied already; sets the wait until the next check.
   void cycleOnClouds();
   void onTimer(const ros::TimerEvent& event);
-  /// When the steps of one cycle ended, for ~stats.
-  struct CycleTimes {
-    Clock::time_point start;
-    Clock::time_point clouds_applied;
-    Clock::time_point cycled;
-    Clock::time_point contacts_published;
-    ros::Time contacts_published_ros;
-    Clock::time_point published;
-  };
+  using CycleTimes = NodeOutputs::CycleTimes;
 
   /// runCycle, an exception logged instead of ending the thread.
   void runCycleLogged();
@@ -201,7 +191,6 @@ class DeformableCollisionNode {
   std::size_t publishDeformed(const std_msgs::Header& header);
   void publishStats(const std_msgs::Header& header, const CycleTimes& times,
                     std::optional<Clock::time_point> oldest_input, std::size_t points);
-  void fillLatencyStats(Stats& stats) const;
   bool onSetLevel(SetLevel::Request& request, SetLevel::Response& response);
   bool onGetContacts(GetContacts::Request& request, GetContacts::Response& response);
 
@@ -219,9 +208,6 @@ class DeformableCollisionNode {
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
 
-  CountedPublisher contacts_publisher_;
-  CountedPublisher hierarchy_publisher_;
-  CountedPublisher stats_publisher_;
   ros::ServiceServer set_level_service_;
   ros::ServiceServer get_contacts_service_;
   ros::Timer timer_;
@@ -258,20 +244,10 @@ class DeformableCollisionNode {
   bool models_waiting_ = false;
   const Clock::duration cycle_period_;  ///< 1 / rate_hz
   Clock::duration cycle_wait_;
-  HierarchyMarkers markers_;
   std::vector<SceneContact> query_contacts_;
   /// The services' view of slots_: names point into slots_[i].params, which never moves.
   std::vector<NamedObject> named_objects_;
-  LatencyWindow arrival_latency_;
-  LatencyWindow stamp_latency_;
-  Clock::time_point latency_period_start_;
-  LatencySummary arrival_summary_;
-  LatencySummary stamp_summary_;
-  double latency_period_s_ = 0.0;  ///< The length of the period summarised.
-  std::uint64_t latency_periods_ = 0;
-  Stats stats_message_;
-  /// The last ~contacts message, filled again in place while nobody else holds it.
-  boost::shared_ptr<ContactArray> contacts_message_;
+  NodeOutputs outputs_;
 
   // Last: they start after everything they use exists and stop before it goes.
   ros::AsyncSpinner reader_spinner_;

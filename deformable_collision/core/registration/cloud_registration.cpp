@@ -16,9 +16,9 @@
 #include <stdexcept>
 #include <utility>
 
-#include "deformable_collision/core/common/nearest_point_index.h"
-
 #include "deformable_collision/core/common/linear_algebra.h"
+#include "deformable_collision/core/common/nearest_point_index.h"
+#include "deformable_collision/core/registration/detail/spread_points.h"
 
 namespace deformable_collision {
 namespace {
@@ -46,43 +46,6 @@ constexpr double kMedianMultiple = 3.0;
 /// ... and whatever the median, a quarter of max_correspondence_m is kept: noise-free data
 /// has a median near zero, which must not reject good matches.
 constexpr double kThresholdFloorRatio = 0.25;
-
-/// Up to `target` indices of `points`, one per cell of a grid whose cell size is chosen so
-/// that about `target` cells are occupied: the points spread evenly over the shape, in
-/// ascending order. All of them if there are no more than `target`.
-std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& points,
-                                        std::size_t target) {
-  std::vector<std::uint32_t> chosen;
-  if (points.size() <= target) {
-    chosen.resize(points.size());
-    for (std::uint32_t i = 0; i < chosen.size(); ++i) chosen[i] = i;
-    return chosen;
-  }
-  Eigen::AlignedBox3d box;
-  for (const auto& p : points) box.extend(p);
-  const double extent = std::max(box.sizes().maxCoeff(), std::numeric_limits<double>::min());
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> cells(points.size());
-  // A surface fills cells as the square of their count per side, a volume as the cube:
-  // shrink the cells until about `target` are occupied, starting where a volume would be.
-  double cell = extent / std::cbrt(static_cast<double>(target));
-  for (int attempt = 0; attempt < 40; ++attempt) {
-    for (std::uint32_t i = 0; i < points.size(); ++i) {
-      const Eigen::Vector3d scaled = (points[i] - box.min()) / cell;
-      const auto axis = [&](int d) { return static_cast<std::uint64_t>(scaled[d]) & 0x1fffff; };
-      cells[i] = {(axis(0) << 42) | (axis(1) << 21) | axis(2), i};
-    }
-    std::sort(cells.begin(), cells.end());
-    chosen.clear();
-    for (std::size_t k = 0; k < cells.size(); ++k) {
-      if (k == 0 || cells[k].first != cells[k - 1].first) chosen.push_back(cells[k].second);
-    }
-    if (chosen.size() <= target) break;
-    cell *= 1.0 + 0.5 * (static_cast<double>(chosen.size()) / target - 1.0) + 0.01;
-  }
-  if (chosen.size() > target) chosen.resize(target);
-  std::sort(chosen.begin(), chosen.end());
-  return chosen;
-}
 
 /// Weight of the prior (the cluster's shape-matching goal moved with the object) per
 /// matching point of the cluster, against 1 per matched point: it fills in what the camera
@@ -161,7 +124,9 @@ struct ClusterFit {
   Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d goal(const Features& features) const { return transform * features + translation; }
+  Eigen::Vector3d goal(const Features& features) const {
+    return transform * features + translation;
+  }
 };
 
 /// Weighted least-squares sums of one cluster's fit: pairs of features q~ and targets y,
@@ -204,10 +169,10 @@ struct CloudRegistration::Workspace {
   /// Per cluster, the sums of its matching points' features with weight 1: with the
   /// cluster's transform they give the sums of the prior without visiting the points.
   std::vector<FitSums> prior_sums;
-  std::vector<Features> mean_features;  ///< Per cluster, as its features are taken here.
-  double shape_beta = 0.5;              ///< The body's beta.
+  std::vector<Features> mean_features;           ///< Per cluster, as its features are taken here.
+  double shape_beta = 0.5;                       ///< The body's beta.
   std::vector<std::uint32_t> clusters_of_point;  ///< Per model point.
-  std::vector<Eigen::Vector3d> positions;  ///< Of the matching points, this round.
+  std::vector<Eigen::Vector3d> positions;        ///< Of the matching points, this round.
   /// The matching points that may be seen (all, without a viewpoint): the tree's points.
   std::vector<Eigen::Vector3d> tree_positions;
   std::vector<std::uint32_t> tree_members;  ///< Matching point of each tree point.
@@ -254,7 +219,7 @@ void CloudRegistration::Workspace::layOut(const ShapeMatchingBody& body,
                                           std::size_t max_model_points) {
   const auto& rest = body.restPositions();
   mode = body.config().mode;
-  matching_points = spreadPoints(rest, max_model_points);
+  matching_points = detail::spreadPoints(rest, max_model_points);
   constexpr auto kNone = std::numeric_limits<std::uint32_t>::max();
   std::vector<std::uint32_t> index_of_point(rest.size(), kNone);
   for (std::uint32_t m = 0; m < matching_points.size(); ++m) index_of_point[matching_points[m]] = m;
@@ -305,7 +270,8 @@ void CloudRegistration::Workspace::sampleCloud(const std::vector<Eigen::Vector3d
   for (const auto& p : cloud) finite_count += p.allFinite() ? 1 : 0;
   // Every stride-th finite point: evenly over the cloud's order, which for a camera's cloud
   // is evenly over the image.
-  const std::size_t stride = std::max<std::size_t>(1, (finite_count + max_samples - 1) / max_samples);
+  const std::size_t stride =
+      std::max<std::size_t>(1, (finite_count + max_samples - 1) / max_samples);
   samples.clear();
   std::size_t seen = 0;
   for (const auto& p : cloud) {
@@ -331,7 +297,8 @@ void CloudRegistration::Workspace::placeMatchingPoints(
       sum += fits[memberships[e].cluster].goal(memberships[e].features);
     }
     positions[m] = sum / static_cast<double>(membership_offsets[m + 1] - membership_offsets[m]);
-    current_normals[m] = fits[memberships[membership_offsets[m]].cluster].rotation * rest_normals.outward[m];
+    current_normals[m] =
+        fits[memberships[membership_offsets[m]].cluster].rotation * rest_normals.outward[m];
     // A point whose surface faces away from the camera cannot be what it sees, however
     // near: the far side of a thin object, the hidden face next to a seen edge. A point
     // on an edge would be pulled off it by the seen face's points on one side alone.
@@ -346,7 +313,8 @@ void CloudRegistration::Workspace::placeMatchingPoints(
 double CloudRegistration::Workspace::matchSamples() {
   sorted_distances.clear();
   if (tree_positions.empty()) {
-    std::fill(distance_of_sample.begin(), distance_of_sample.end(), std::numeric_limits<double>::infinity());
+    std::fill(distance_of_sample.begin(), distance_of_sample.end(),
+              std::numeric_limits<double>::infinity());
     return 0.0;
   }
   for (std::size_t j = 0; j < samples.size(); ++j) {
@@ -398,14 +366,16 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidS
   // noise says, while a well-seen motion is followed within a round or two.
   double arm_squared = 0.0;
   for (std::size_t j = 0; j < samples.size(); ++j) {
-    if (distance_of_sample[j] <= threshold) arm_squared += (positions[match_of_sample[j]] - center).squaredNorm();
+    if (distance_of_sample[j] <= threshold)
+      arm_squared += (positions[match_of_sample[j]] - center).squaredNorm();
   }
   const double step_prior = kRigidStepPriorShare * kPriorWeight;
   normal_matrix.diagonal().head<3>().array() += step_prior * arm_squared + 1e-300;
   normal_matrix.diagonal().tail<3>().array() += step_prior * static_cast<double>(used);
   const Eigen::Matrix<double, 6, 1> motion = normal_matrix.ldlt().solve(right_side);
   step.center = center;
-  step.translation = motion.tail<3>().allFinite() ? Eigen::Vector3d(motion.tail<3>()) : Eigen::Vector3d::Zero();
+  step.translation =
+      motion.tail<3>().allFinite() ? Eigen::Vector3d(motion.tail<3>()) : Eigen::Vector3d::Zero();
   const double angle = motion.head<3>().norm();
   step.rotation = angle > 0.0 && std::isfinite(angle)
                       ? Eigen::AngleAxisd(angle, motion.head<3>() / angle).toRotationMatrix()
@@ -433,7 +403,8 @@ void CloudRegistration::Workspace::fitClusters(const RigidStep& step, double pri
     s.features = prior_weight * prior.features;
     s.feature_moment = prior_weight * prior.feature_moment;
     s.targets = prior_weight * (moved * prior.features + offset * prior.weight);
-    s.target_features = prior_weight * (moved * prior.feature_moment + offset * prior.features.transpose());
+    s.target_features =
+        prior_weight * (moved * prior.feature_moment + offset * prior.features.transpose());
   }
   for (std::size_t m = 0; m < matching_points.size(); ++m) {
     if (target_counts[m] == 0) continue;
@@ -461,15 +432,16 @@ void CloudRegistration::Workspace::fitClusters(const RigidStep& step, double pri
 }
 
 template <int K>
-void CloudRegistration::Workspace::solveCluster(std::size_t k, const Eigen::Matrix3d& step_rotation) {
+void CloudRegistration::Workspace::solveCluster(std::size_t k,
+                                                const Eigen::Matrix3d& step_rotation) {
   const FitSums& s = sums[k];
   ClusterFit& fit = fits[k];
   const Eigen::Matrix<double, K, 1> mean_features = s.features.template head<K>() / s.weight;
   const Eigen::Vector3d mean_target = s.targets / s.weight;
   const Eigen::Matrix<double, 3, K> cross =
       s.target_features.template leftCols<K>() - s.weight * mean_target * mean_features.transpose();
-  const Eigen::Matrix<double, K, K> moment =
-      s.feature_moment.template topLeftCorner<K, K>() - s.weight * mean_features * mean_features.transpose();
+  const Eigen::Matrix<double, K, K> moment = s.feature_moment.template topLeftCorner<K, K>() -
+                                             s.weight * mean_features * mean_features.transpose();
   Eigen::Quaterniond rotation(step_rotation * fit.rotation.toRotationMatrix());
   Eigen::Matrix<double, 3, K> transform;
   if (mode == DeformationMode::kRigid) {
@@ -496,7 +468,8 @@ void CloudRegistration::Workspace::applyFits(ShapeMatchingBody& body) {
       goals[cluster.points[j]] += fits[k].goal(features);
     }
   }
-  for (std::size_t i = 0; i < goals.size(); ++i) goals[i] /= static_cast<double>(clusters_of_point[i]);
+  for (std::size_t i = 0; i < goals.size(); ++i)
+    goals[i] /= static_cast<double>(clusters_of_point[i]);
   body.track(goals);
 }
 
@@ -556,15 +529,16 @@ RegistrationReport CloudRegistration::registerCloud(
   }
   RegistrationReport report;
   w.sampleCloud(cloud_m, config_.max_cloud_points, filter, report);
-  const double needed = std::max(1.0, config_.min_match_ratio * static_cast<double>(w.samples.size()));
+  const double needed =
+      std::max(1.0, config_.min_match_ratio * static_cast<double>(w.samples.size()));
   double threshold = 0.0;
   int rounds_done = 0;
   for (int round = 0; round < config_.iterations; ++round) {
     w.placeMatchingPoints(viewpoint_m);
     const double median = w.matchSamples();
-    threshold = std::min(config_.max_correspondence_m,
-                         std::max(kMedianMultiple * median,
-                                  kThresholdFloorRatio * config_.max_correspondence_m));
+    threshold = std::min(
+        config_.max_correspondence_m,
+        std::max(kMedianMultiple * median, kThresholdFloorRatio * config_.max_correspondence_m));
     RigidStep step;
     const std::size_t used = w.gatherTargets(threshold, step);
     if (static_cast<double>(used) < needed) {

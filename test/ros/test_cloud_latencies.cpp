@@ -1,0 +1,50 @@
+#include "deformable_collision/ros/cloud_latencies.h"
+
+#include <gtest/gtest.h>
+
+namespace deformable_collision {
+namespace {
+
+using Clock = CloudLatencies::Clock;
+using std::chrono::milliseconds;
+
+TEST(CloudLatencies, SummarisesEachClosedPeriodForStats) {
+  const Clock::time_point start{};
+  CloudLatencies latencies(start, milliseconds(1000));
+  Stats stats;
+  latencies.fill(stats);
+  EXPECT_EQ(stats.latency_periods, 0u);
+  EXPECT_EQ(stats.latency_clouds, 0u);
+
+  const ros::Time published_ros(100.0);
+  // Arrived 2 and 4 ms before their contacts; stamped 10 ms before, and not stamped.
+  latencies.add(start + milliseconds(8), published_ros - ros::Duration(0.010),
+                start + milliseconds(10), published_ros);
+  latencies.add(start + milliseconds(6), ros::Time(), start + milliseconds(10), published_ros);
+  latencies.closePeriodIfDue(start + milliseconds(999));
+  latencies.fill(stats);
+  EXPECT_EQ(stats.latency_periods, 0u) << "a period shorter than 1 s stays open";
+
+  latencies.closePeriodIfDue(start + milliseconds(1500));
+  latencies.fill(stats);
+  EXPECT_EQ(stats.latency_periods, 1u);
+  EXPECT_DOUBLE_EQ(stats.latency_period_s, 1.5);
+  EXPECT_EQ(stats.latency_clouds, 2u);
+  EXPECT_DOUBLE_EQ(stats.arrival_latency_mean_ms, 3.0);
+  EXPECT_DOUBLE_EQ(stats.arrival_latency_max_ms, 4.0);
+  EXPECT_NEAR(stats.stamp_latency_mean_ms, 10.0, 1e-6);
+  EXPECT_NEAR(stats.stamp_latency_max_ms, 10.0, 1e-6);
+
+  // The next period starts where the last closed, empty.
+  latencies.closePeriodIfDue(start + milliseconds(2499));
+  latencies.fill(stats);
+  EXPECT_EQ(stats.latency_periods, 1u);
+  latencies.closePeriodIfDue(start + milliseconds(2500));
+  latencies.fill(stats);
+  EXPECT_EQ(stats.latency_periods, 2u);
+  EXPECT_EQ(stats.latency_clouds, 0u);
+  EXPECT_EQ(stats.arrival_latency_max_ms, 0.0);
+}
+
+}  // namespace
+}  // namespace deformable_collision
