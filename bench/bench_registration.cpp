@@ -10,10 +10,10 @@
 //                      [--cloud camera|truth] [--exclude-near-jaws 0|1]
 //
 // --method: ours is Scene::registerCloud of the sponge in a scene with the jaws, which leaves
-// out the cloud's points near the jaws (--exclude-near-jaws 0 keeps them); pcl_icp is PCL's rigid ICP of the whole model, and
-// pcl_icp_clusters of each of the body's K clusters alone, on the same thinned clouds with
-// the same rounds and largest match distance (PclIcpRegistration); --model-points is ours
-// alone, PCL matches to every rest point of a part.
+// out the cloud's points near the jaws (--exclude-near-jaws 0 keeps them); pcl_icp is PCL's rigid
+// ICP of the whole model, and pcl_icp_clusters of each of the body's K clusters alone, on the same
+// thinned clouds with the same rounds and largest match distance (PclIcpRegistration);
+// --model-points is ours alone, PCL matches to every rest point of a part.
 // --static 1 leaves the rest model in place (no registration): the baseline a registration
 // must beat. --method model_limit is no registration: each cluster's transform (by --mode)
 // is the least-squares fit to the ground truth of all its points, the best the model can
@@ -52,10 +52,10 @@ namespace {
 
 using deformable_collision::CameraGripperConfig;
 using deformable_collision::CameraGripperScene;
-using deformable_collision::bench::PclIcpRegistration;
 using deformable_collision::RegistrationConfig;
 using deformable_collision::ShapeMatchingBody;
 using deformable_collision::ShapeMatchingConfig;
+using deformable_collision::bench::PclIcpRegistration;
 
 using deformable_collision::JawSide;
 using deformable_collision::ObjectKind;
@@ -82,13 +82,13 @@ struct Settings {
 struct Errors {
   double seen_mean_m = 0.0, hidden_mean_m = 0.0;  ///< Mean over frames of the mean over points.
   double seen_off_surface_m = 0.0, hidden_off_surface_m = 0.0;  ///< The same, along the normal.
-  double seen_max_m = 0.0, hidden_max_m = 0.0;    ///< Largest over frames and points.
-  double registration_ms = 0.0;                   ///< Mean per cloud.
+  double seen_max_m = 0.0, hidden_max_m = 0.0;                  ///< Largest over frames and points.
+  double registration_ms = 0.0;                                 ///< Mean per cloud.
   double worst_registration_ms = 0.0;
   std::size_t held = 0;
-  double cycle_ms = 0.0;  ///< The contact scene's cycle, mean per cloud.
+  double cycle_ms = 0.0;                            ///< The contact scene's cycle, mean per cloud.
   double coverage_m = 0.0, worst_coverage_m = 0.0;  ///< Mean over jaw-frames both touched.
-  std::size_t jaw_frames_touched = 0;  ///< Jaw-frames where the true sponge touched the jaw.
+  std::size_t jaw_frames_touched = 0;    ///< Jaw-frames where the true sponge touched the jaw.
   std::size_t missed = 0, spurious = 0;  ///< Jaw-frames touched by the truth or the model alone.
 };
 
@@ -108,14 +108,16 @@ class JawContacts {
   }
 
   /// Places the sponge's points and the jaws at `time_s` and runs one cycle; its ms.
-  double update(const CameraGripperScene& scene, double time_s, const std::vector<Eigen::Vector3d>& sponge_m) {
+  double update(const CameraGripperScene& scene, double time_s,
+                const std::vector<Eigen::Vector3d>& sponge_m) {
     scene_->observe(sponge_, sponge_m);
     for (const JawSide side : {JawSide::kLeft, JawSide::kRight}) {
       scene_->setPose(jaws_[static_cast<int>(side)], scene.jawPose(side, time_s));
     }
     const auto start = std::chrono::steady_clock::now();
     scene_->cycle();
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     for (auto& positions : contact_positions_) positions.clear();
     for (const SceneContact& c : scene_->contacts()) {
       for (int side = 0; side < 2; ++side) {
@@ -173,7 +175,8 @@ class Registrar {
 /// that also holds the jaws, posed before each cloud.
 class OursRegistrar : public Registrar {
  public:
-  OursRegistrar(const CameraGripperScene& scene, const ShapeMatchingConfig& shape, const Settings& s)
+  OursRegistrar(const CameraGripperScene& scene, const ShapeMatchingConfig& shape,
+                const Settings& s)
       : leave_in_place_(s.leave_in_place) {
     SceneConfig config;
     config.contact_distance_m = kContactDistanceM;
@@ -195,7 +198,9 @@ class OursRegistrar : public Registrar {
     if (leave_in_place_) return 0;
     return scene_->registerCloud(sponge_, cloud_m, viewpoint_m).held ? 1 : 0;
   }
-  const std::vector<Eigen::Vector3d>& positions() const override { return scene_->body(sponge_).positions(); }
+  const std::vector<Eigen::Vector3d>& positions() const override {
+    return scene_->body(sponge_).positions();
+  }
 
  private:
   std::unique_ptr<Scene> scene_;
@@ -207,13 +212,16 @@ class OursRegistrar : public Registrar {
 class PclIcpRegistrar : public Registrar {
  public:
   PclIcpRegistrar(const std::vector<Eigen::Vector3d>& rest_points,
-                  const std::vector<std::vector<std::uint32_t>>& parts, const RegistrationConfig& config)
+                  const std::vector<std::vector<std::uint32_t>>& parts,
+                  const RegistrationConfig& config)
       : registration_(rest_points, parts, config) {}
   std::size_t registerCloud(const std::vector<Eigen::Vector3d>& cloud_m,
                             const Eigen::Vector3d& /*viewpoint_m*/) override {
     return registration_.registerCloud(cloud_m);
   }
-  const std::vector<Eigen::Vector3d>& positions() const override { return registration_.positions(); }
+  const std::vector<Eigen::Vector3d>& positions() const override {
+    return registration_.positions();
+  }
 
  private:
   PclIcpRegistration registration_;
@@ -247,7 +255,9 @@ std::size_t ModelLimitRegistrar::registerCloud(const std::vector<Eigen::Vector3d
     Eigen::MatrixXd truth(cluster.points.size(), 3);
     for (std::size_t j = 0; j < cluster.points.size(); ++j) {
       features.row(j).head(feature_count) =
-          deformable_collision::quadraticFeatures(cluster.rest_offsets[j]).head(feature_count).transpose();
+          deformable_collision::quadraticFeatures(cluster.rest_offsets[j])
+              .head(feature_count)
+              .transpose();
       features(j, feature_count) = 1.0;
       truth.row(j) = scene_.groundTruth()[cluster.points[j]].transpose();
     }
@@ -255,7 +265,8 @@ std::size_t ModelLimitRegistrar::registerCloud(const std::vector<Eigen::Vector3d
         (features.transpose() * features).ldlt().solve(features.transpose() * truth);
     if (mode == deformable_collision::DeformationMode::kRigid) {
       // The rotation nearest the fit's linear part, and the translation that goes with it.
-      Eigen::JacobiSVD<Eigen::Matrix3d> svd(transform.topRows(3).transpose(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+      Eigen::JacobiSVD<Eigen::Matrix3d> svd(transform.topRows(3).transpose(),
+                                            Eigen::ComputeFullU | Eigen::ComputeFullV);
       Eigen::Matrix3d rotation = svd.matrixU() * svd.matrixV().transpose();
       if (rotation.determinant() < 0.0) {
         Eigen::Matrix3d flip = Eigen::Matrix3d::Identity();
@@ -263,7 +274,8 @@ std::size_t ModelLimitRegistrar::registerCloud(const std::vector<Eigen::Vector3d
         rotation = svd.matrixU() * flip * svd.matrixV().transpose();
       }
       transform.topRows(3) = rotation.transpose();
-      transform.row(3) = (truth.colwise().mean() - features.leftCols(3).colwise().mean() * rotation.transpose());
+      transform.row(3) =
+          (truth.colwise().mean() - features.leftCols(3).colwise().mean() * rotation.transpose());
     }
     const Eigen::MatrixXd placed = features * transform;
     for (std::size_t j = 0; j < cluster.points.size(); ++j) {
@@ -290,19 +302,23 @@ Settings parse(int argc, char** argv) {
     else if (key == "--mode") s.mode = value;
     else if (key == "--clusters") s.clusters = std::atoi(value);
     else if (key == "--iterations") s.registration.iterations = std::atoi(value);
-    else if (key == "--cloud-points") s.registration.max_cloud_points = std::strtoul(value, nullptr, 10);
-    else if (key == "--model-points") s.registration.max_model_points = std::strtoul(value, nullptr, 10);
+    else if (key == "--cloud-points")
+      s.registration.max_cloud_points = std::strtoul(value, nullptr, 10);
+    else if (key == "--model-points")
+      s.registration.max_model_points = std::strtoul(value, nullptr, 10);
     else if (key == "--method") s.method = value;
     else if (key == "--static") s.leave_in_place = std::atoi(value) != 0;
     else if (key == "--cloud") s.truth_cloud = std::string(value) == "truth";
-    else if (key == "--exclude-near-jaws") s.registration.exclude_near_other_objects = std::atoi(value) != 0;
+    else if (key == "--exclude-near-jaws")
+      s.registration.exclude_near_other_objects = std::atoi(value) != 0;
     else usageError("unknown option " + key);
   }
   if (s.method != "ours" && s.method != "pcl_icp" && s.method != "pcl_icp_clusters" &&
       s.method != "model_limit") {
     usageError("unknown method " + s.method + " (ours, pcl_icp, pcl_icp_clusters, model_limit)");
   }
-  if (s.leave_in_place && s.method != "ours") usageError("--static 1 is a setting of --method ours");
+  if (s.leave_in_place && s.method != "ours")
+    usageError("--static 1 is a setting of --method ours");
   return s;
 }
 
@@ -313,7 +329,8 @@ std::unique_ptr<Registrar> makeRegistrar(const Settings& s, const CameraGripperS
   shape.clusters = s.clusters;
   if (s.method == "ours") return std::make_unique<OursRegistrar>(scene, shape, s);
   ShapeMatchingBody body(rest_points, shape);
-  if (s.method == "model_limit") return std::make_unique<ModelLimitRegistrar>(std::move(body), scene);
+  if (s.method == "model_limit")
+    return std::make_unique<ModelLimitRegistrar>(std::move(body), scene);
   std::vector<std::vector<std::uint32_t>> parts;
   if (s.method == "pcl_icp") {
     parts.emplace_back(rest_points.size());
@@ -325,8 +342,8 @@ std::unique_ptr<Registrar> makeRegistrar(const Settings& s, const CameraGripperS
 }
 
 /// Adds one frame's errors of `positions` against the scene's ground truth to `errors`.
-void score(const std::vector<Eigen::Vector3d>& positions, const CameraGripperScene& scene, int frames,
-           Errors& errors) {
+void score(const std::vector<Eigen::Vector3d>& positions, const CameraGripperScene& scene,
+           int frames, Errors& errors) {
   double seen_sum = 0.0, hidden_sum = 0.0, seen_off_sum = 0.0, hidden_off_sum = 0.0;
   std::size_t seen = 0, hidden = 0;
   for (std::size_t i = 0; i < positions.size(); ++i) {
@@ -334,12 +351,16 @@ void score(const std::vector<Eigen::Vector3d>& positions, const CameraGripperSce
     const double e = error.norm();
     const double off = std::abs(error.dot(scene.groundTruthNormals()[i]));
     if (scene.groundTruthVisible()[i]) {
-      seen_sum += e, seen_off_sum += off, ++seen, errors.seen_max_m = std::max(errors.seen_max_m, e);
+      seen_sum += e, seen_off_sum += off, ++seen,
+          errors.seen_max_m = std::max(errors.seen_max_m, e);
     } else {
-      hidden_sum += e, hidden_off_sum += off, ++hidden, errors.hidden_max_m = std::max(errors.hidden_max_m, e);
+      hidden_sum += e, hidden_off_sum += off, ++hidden,
+          errors.hidden_max_m = std::max(errors.hidden_max_m, e);
     }
   }
-  const auto mean = [frames](double sum, std::size_t count) { return (count ? sum / count : 0.0) / frames; };
+  const auto mean = [frames](double sum, std::size_t count) {
+    return (count ? sum / count : 0.0) / frames;
+  };
   errors.seen_mean_m += mean(seen_sum, seen);
   errors.hidden_mean_m += mean(hidden_sum, hidden);
   errors.seen_off_surface_m += mean(seen_off_sum, seen);
@@ -375,7 +396,8 @@ Errors run(const Settings& s) {
     registrar->placeSurroundings(scene, time_s);
     const auto start = std::chrono::steady_clock::now();
     errors.held += registrar->registerCloud(cloud, camera.translation());
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     errors.registration_ms += ms / s.frames;
     errors.worst_registration_ms = std::max(errors.worst_registration_ms, ms);
     score(registrar->positions(), scene, s.frames, errors);
@@ -393,15 +415,19 @@ Errors run(const Settings& s) {
 int main(int argc, char** argv) {
   const Settings s = parse(argc, argv);
   const Errors e = run(s);
-  std::printf("method %s%s points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
-              "seen mean %.2f max %.2f off surface %.2f mm | hidden mean %.2f max %.2f off surface %.2f mm | "
-              "registration %.2f ms (worst %.2f) | held %zu | cycle %.2f ms | contacts: coverage %.2f mm "
-              "(worst %.2f), missed %zu and spurious %zu of %zu jaw-frames touched\n",
-              s.method.c_str(), s.truth_cloud ? " cloud truth" : "", s.points, s.frames, s.mode.c_str(),
-              s.clusters, s.leave_in_place ? "static" : ("iterations " + std::to_string(s.registration.iterations)).c_str(),
-              s.registration.max_cloud_points, s.registration.max_model_points, 1e3 * e.seen_mean_m,
-              1e3 * e.seen_max_m, 1e3 * e.seen_off_surface_m, 1e3 * e.hidden_mean_m, 1e3 * e.hidden_max_m,
-              1e3 * e.hidden_off_surface_m, e.registration_ms, e.worst_registration_ms, e.held, e.cycle_ms,
-              1e3 * e.coverage_m, 1e3 * e.worst_coverage_m, e.missed, e.spurious, e.jaw_frames_touched);
+  std::printf(
+      "method %s%s points %zu frames %d mode %s clusters %d %s cloud_points %zu model_points %zu | "
+      "seen mean %.2f max %.2f off surface %.2f mm | hidden mean %.2f max %.2f off surface %.2f mm "
+      "| "
+      "registration %.2f ms (worst %.2f) | held %zu | cycle %.2f ms | contacts: coverage %.2f mm "
+      "(worst %.2f), missed %zu and spurious %zu of %zu jaw-frames touched\n",
+      s.method.c_str(), s.truth_cloud ? " cloud truth" : "", s.points, s.frames, s.mode.c_str(),
+      s.clusters,
+      s.leave_in_place ? "static"
+                       : ("iterations " + std::to_string(s.registration.iterations)).c_str(),
+      s.registration.max_cloud_points, s.registration.max_model_points, 1e3 * e.seen_mean_m,
+      1e3 * e.seen_max_m, 1e3 * e.seen_off_surface_m, 1e3 * e.hidden_mean_m, 1e3 * e.hidden_max_m,
+      1e3 * e.hidden_off_surface_m, e.registration_ms, e.worst_registration_ms, e.held, e.cycle_ms,
+      1e3 * e.coverage_m, 1e3 * e.worst_coverage_m, e.missed, e.spurious, e.jaw_frames_touched);
   return 0;
 }

@@ -41,8 +41,8 @@
 
 #include "bench/bench_common.h"
 #include "deformable_collision/core/hierarchy/bounding_sphere.h"
-#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 
 namespace dc = deformable_collision;
 namespace db = deformable_collision::bench;
@@ -360,8 +360,8 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
   std::vector<Means> means(finest + 1);
   std::vector<LevelEnd> ends(finest + 1);
   std::vector<double> rms_rel(finest + 1, 0.0);
-  if (!runLevels(std::move(reference), settle, cycles, settled_points, pile.diameter_m, means,
-                 ends, rms_rel)) {
+  if (!runLevels(std::move(reference), settle, cycles, settled_points, pile.diameter_m, means, ends,
+                 rms_rel)) {
     return 1;
   }
 
@@ -383,9 +383,10 @@ int runS2(const std::string& results_dir, int settle, int cycles) {
     const LevelEnd& e = ends[level];
     const double total = m.detection_ms + m.response_ms;
     const double whole = total + m.shape_matching_ms;
-    std::printf("| %d | %.0f | %.3f | %.3f | %.3f | %.3f | %.3f | %.4f | %.5f | %.4f | %.4f | %.5f |\n",
-                level, m.contacts, m.detection_ms, m.response_ms, total, total / baseline_ms, whole,
-                coverage[level], rms_rel[level], e.speed_mps, e.deepest_m, e.mean_depth_m);
+    std::printf(
+        "| %d | %.0f | %.3f | %.3f | %.3f | %.3f | %.3f | %.4f | %.5f | %.4f | %.4f | %.5f |\n",
+        level, m.contacts, m.detection_ms, m.response_ms, total, total / baseline_ms, whole,
+        coverage[level], rms_rel[level], e.speed_mps, e.deepest_m, e.mean_depth_m);
     std::fprintf(csv.file(), "%d,%.1f,%.5f,%.5f,%.5f,%.5f,%.5f,%.6f,%.6f,%.6f,%.6f,%.6f\n", level,
                  m.contacts, m.detection_ms, m.response_ms, total, m.shape_matching_ms, whole,
                  coverage[level], rms_rel[level], e.speed_mps, e.deepest_m, e.mean_depth_m);

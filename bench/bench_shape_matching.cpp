@@ -35,8 +35,8 @@ void shapeMatchingStep(benchmark::State& state, dc::DeformationMode mode, bool d
     benchmark::DoNotOptimize(body.positions().data());
   }
   state.counters["per_point"] = benchmark::Counter(
-      static_cast<double>(points), benchmark::Counter::kIsIterationInvariantRate |
-                                       benchmark::Counter::kInvert);
+      static_cast<double>(points),
+      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 /// One fit to the bent box whose every tenth point is unobserved (NaN), alternating with
@@ -59,8 +59,8 @@ void shapeMatchingTrack(benchmark::State& state, dc::DeformationMode mode,
     benchmark::DoNotOptimize(body.track(observations[fits++ % 2]));
   }
   state.counters["per_point"] = benchmark::Counter(
-      static_cast<double>(points), benchmark::Counter::kIsIterationInvariantRate |
-                                       benchmark::Counter::kInvert);
+      static_cast<double>(points),
+      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
 }
 
 void arguments(benchmark::internal::Benchmark* b) {
@@ -84,8 +84,7 @@ BENCHMARK_CAPTURE(shapeMatchingStep, quadratic_damped_portable, dc::DeformationM
                   true, dc::VectorWidth::kPortable)
     ->Apply(arguments);
 BENCHMARK_CAPTURE(shapeMatchingTrack, linear, dc::DeformationMode::kLinear)->Apply(arguments);
-BENCHMARK_CAPTURE(shapeMatchingTrack, quadratic, dc::DeformationMode::kQuadratic)
-    ->Apply(arguments);
+BENCHMARK_CAPTURE(shapeMatchingTrack, quadratic, dc::DeformationMode::kQuadratic)->Apply(arguments);
 BENCHMARK_CAPTURE(shapeMatchingTrack, linear_portable, dc::DeformationMode::kLinear,
                   dc::VectorWidth::kPortable)
     ->Apply(arguments);

@@ -24,7 +24,8 @@ void CloudHandoff::put(std::size_t object, ReadCloud& cloud) {
   std::swap(waiting_.at(object), cloud);
   if (is_waiting_[object]) {
     ReadCloud& newer = waiting_[object];
-    if (newer.prepared.empty() && !cloud.prepared.empty()) newer.prepared = std::move(cloud.prepared);
+    if (newer.prepared.empty() && !cloud.prepared.empty())
+      newer.prepared = std::move(cloud.prepared);
     ++coalesced_;
     replaced_since_cycle_[object] = true;
     return;

@@ -75,7 +75,7 @@ class CloudHandoff {
   mutable std::mutex mutex_;
   std::vector<ReadCloud> waiting_;
   std::vector<bool> is_waiting_;
-  std::vector<bool> taken_early_;  ///< Since the last takeForCycle().
+  std::vector<bool> taken_early_;           ///< Since the last takeForCycle().
   std::vector<bool> replaced_since_cycle_;  ///< A waiting cloud replaced since then.
   /// Cycles in a row that had two clouds or more of the object, up to kCyclesFasterToWait.
   static constexpr int kCyclesFasterToWait = 2;

@@ -38,9 +38,9 @@ std::optional<Eigen::Isometry3d> toIsometry(const geometry_msgs::Transform& tran
 }
 
 geometry_msgs::TransformStamped toTransformStamped(const Eigen::Isometry3d& pose,
-                                                  const ros::Time& stamp,
-                                                  const std::string& parent,
-                                                  const std::string& child) {
+                                                   const ros::Time& stamp,
+                                                   const std::string& parent,
+                                                   const std::string& child) {
   geometry_msgs::TransformStamped stamped;
   stamped.header.stamp = stamp;
   stamped.header.frame_id = parent;
@@ -65,8 +65,9 @@ std::string farCoordinateProblem(const std::vector<Eigen::Vector3d>& points, dou
     for (int axis = 0; axis < 3; ++axis) {
       if (std::abs(points[i][axis]) <= bound_m) continue;
       std::ostringstream problem;
-      problem << "point " << i << " has " << "xyz"[axis] << " = " << points[i][axis] << " m in '"
-              << frame << "', beyond max_coordinate_m = " << bound_m;
+      problem << "point " << i << " has "
+              << "xyz"[axis] << " = " << points[i][axis] << " m in '" << frame
+              << "', beyond max_coordinate_m = " << bound_m;
       return problem.str();
     }
   }

@@ -37,9 +37,9 @@ std::optional<Eigen::Isometry3d> toIsometry(const geometry_msgs::Transform& tran
 
 /// `pose` as tf's transform from `parent` to `child` at `stamp`.
 geometry_msgs::TransformStamped toTransformStamped(const Eigen::Isometry3d& pose,
-                                                  const ros::Time& stamp,
-                                                  const std::string& parent,
-                                                  const std::string& child);
+                                                   const ros::Time& stamp,
+                                                   const std::string& parent,
+                                                   const std::string& child);
 
 /// Why a point lies implausibly far from the origin of `frame`: the first coordinate of
 /// `points` beyond `bound_m` in magnitude, or empty if none is. Unobserved points (NaN in

@@ -36,8 +36,8 @@ bool isRequestableLevel(int level, int max_level) {
 }
 
 std::string levelOutOfRange(int level, int max_level) {
-  return "level " + std::to_string(level) + " is outside [0, " + std::to_string(max_level) +
-         "] (" + std::to_string(max_level) + ": the leaves; -1: the finest; -2: the running one)";
+  return "level " + std::to_string(level) + " is outside [0, " + std::to_string(max_level) + "] (" +
+         std::to_string(max_level) + ": the leaves; -1: the finest; -2: the running one)";
 }
 
 /// What the level taken for a budget means, after "N contacts at level L".
@@ -69,7 +69,8 @@ void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Re
   // Without a budget in the config, -3 is out of range like any other level.
   const bool to_auto = request.level == kAutoLevel && cycle_budget_ms;
   if (scene.objectCount() == 0) {
-    response.message = "no object has a rest shape yet, so there are no levels: publish clouds first";
+    response.message =
+        "no object has a rest shape yet, so there are no levels: publish clouds first";
   } else if (!to_auto && request.level != SetLevel::Request::RUNNING &&
              !isRequestableLevel(request.level, scene.maxLevel())) {
     response.message = levelOutOfRange(request.level, scene.maxLevel()) +
@@ -96,9 +97,8 @@ void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Re
 }
 
 void answerGetContacts(Scene& scene, const LevelCosts& detection_costs,
-                       const std::vector<NamedObject>& objects,
-                       const GetContacts::Request& request, std::vector<SceneContact>& scratch,
-                       GetContacts::Response& response) {
+                       const std::vector<NamedObject>& objects, const GetContacts::Request& request,
+                       std::vector<SceneContact>& scratch, GetContacts::Response& response) {
   response.success = false;
   response.contacts.contacts.clear();
   std::optional<std::size_t> a, b;

@@ -41,9 +41,8 @@ void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Re
 /// (Scene::detectionCosts), or given ones in tests. `scratch` holds the contacts between
 /// calls so that repeated queries reuse its memory. The caller sets the header.
 void answerGetContacts(Scene& scene, const LevelCosts& detection_costs,
-                       const std::vector<NamedObject>& objects,
-                       const GetContacts::Request& request, std::vector<SceneContact>& scratch,
-                       GetContacts::Response& response);
+                       const std::vector<NamedObject>& objects, const GetContacts::Request& request,
+                       std::vector<SceneContact>& scratch, GetContacts::Response& response);
 
 /// Writes `contacts` (found at `level`) as a message, with the objects' names.
 void fillContactArray(const Scene& scene, const std::vector<SceneContact>& contacts, int level,

@@ -87,8 +87,8 @@ void HierarchyMarkers::markColliding(const Scene& scene,
   }
 }
 
-void HierarchyMarkers::drawObject(Scene& scene, std::size_t object, int level,
-                                  bool colliding_only, const std_msgs::Header& header,
+void HierarchyMarkers::drawObject(Scene& scene, std::size_t object, int level, bool colliding_only,
+                                  const std_msgs::Header& header,
                                   visualization_msgs::MarkerArray& markers) {
   const SphereTree& tree = scene.tree(object);
   const std_msgs::ColorRGBA color = objectColor(object, 0.35f);

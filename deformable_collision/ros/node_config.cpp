@@ -132,8 +132,8 @@ class ParamReader {
     used_.insert(old_key);
     if (!params_.hasMember(old_key)) return key;
     if (params_.hasMember(key)) {
-      fail(name(old_key), "is the deprecated name of " + name(key) +
-                              ", which is set too: keep only " + name(key));
+      fail(name(old_key),
+           "is the deprecated name of " + name(key) + ", which is set too: keep only " + name(key));
     }
     warnings.push_back("parameter " + name(old_key) + " is deprecated: rename it " + name(key));
     return old_key;
@@ -164,26 +164,26 @@ void readObjectNames(ParamReader& read, ObjectParams& params) {
   std::string& name = params.object.name;
   name = read.requiredText("name");
   // The name becomes a topic (~deformed/<name>) and a marker namespace.
-  const bool graph_name =
-      std::isalpha(static_cast<unsigned char>(name[0])) &&
-      std::all_of(name.begin(), name.end(), [](char c) {
-        return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
-      });
+  const bool graph_name = std::isalpha(static_cast<unsigned char>(name[0])) &&
+                          std::all_of(name.begin(), name.end(), [](char c) {
+                            return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+                          });
   if (!graph_name) {
-    ParamReader::fail(read.name("name"), "= '" + name +
-                                             "' must start with a letter and hold only letters, "
-                                             "digits and '_' (it names the topic ~deformed/<name>)");
+    ParamReader::fail(read.name("name"),
+                      "= '" + name +
+                          "' must start with a letter and hold only letters, "
+                          "digits and '_' (it names the topic ~deformed/<name>)");
   }
   params.topic = read.requiredText("topic");
   std::string topic_problem;
   if (!ros::names::validate(params.topic, topic_problem)) {
-    ParamReader::fail(read.name("topic"), "= '" + params.topic + "' is not a valid topic name: " +
-                                              topic_problem);
+    ParamReader::fail(read.name("topic"),
+                      "= '" + params.topic + "' is not a valid topic name: " + topic_problem);
   }
   params.follow_frame = read.text("follow_frame", "");
   if (!params.follow_frame.empty() && params.follow_frame[0] == '/') {
-    ParamReader::fail(read.name("follow_frame"), "= '" + params.follow_frame +
-                                                     "' starts with '/', which tf2 refuses");
+    ParamReader::fail(read.name("follow_frame"),
+                      "= '" + params.follow_frame + "' starts with '/', which tf2 refuses");
   }
 }
 
@@ -200,7 +200,8 @@ ModeParam readMode(ParamReader& read) {
   const std::string mode = read.text("mode", toString(DeformationMode::kLinear));
   const auto parsed = parseDeformationMode(mode);
   if (!parsed) {
-    ParamReader::fail(read.name("mode"), "= '" + mode + "' must be " + enumNameList(kDeformationModeNames));
+    ParamReader::fail(read.name("mode"),
+                      "= '" + mode + "' must be " + enumNameList(kDeformationModeNames));
   }
   return {mode, *parsed, given};
 }
@@ -223,8 +224,9 @@ ObjectKind objectKind(const ParamReader& read, const ObjectParams& params, bool 
     }
     if (followsClouds(params.on_cloud)) {
       ParamReader::fail(read.name("on_cloud"),
-                        on_cloud + " needs dynamic: false (a tracked object follows its clouds, "
-                                   "a dynamic one is simulated)");
+                        on_cloud +
+                            " needs dynamic: false (a tracked object follows its clouds, "
+                            "a dynamic one is simulated)");
     }
     return ObjectKind::kDynamic;
   }
@@ -234,8 +236,8 @@ ObjectKind objectKind(const ParamReader& read, const ObjectParams& params, bool 
                         on_cloud + " conflicts with follow_frame (the frame moves the object)");
     }
     if (mode.given && mode.mode != DeformationMode::kRigid) {
-      ParamReader::fail(read.name("mode"), "= '" + mode.text +
-                                               "' but an object that follows a frame is rigid");
+      ParamReader::fail(read.name("mode"),
+                        "= '" + mode.text + "' but an object that follows a frame is rigid");
     }
     return ObjectKind::kKinematic;
   }
@@ -256,8 +258,8 @@ void readModel(ParamReader& read, ObjectParams& params) {
     ParamReader::fail(read.name("model_frame"), "places model_file, which is not set");
   }
   if (!params.model_frame.empty() && params.model_frame[0] == '/') {
-    ParamReader::fail(read.name("model_frame"), "= '" + params.model_frame +
-                                                    "' starts with '/', which tf2 refuses");
+    ParamReader::fail(read.name("model_frame"),
+                      "= '" + params.model_frame + "' starts with '/', which tf2 refuses");
   }
 }
 
@@ -302,7 +304,8 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
   const std::string on_cloud = read.text("on_cloud", toString(OnCloud::kIgnore));
   const auto parsed_on_cloud = parseOnCloud(on_cloud);
   if (!parsed_on_cloud) {
-    ParamReader::fail(read.name("on_cloud"), "= '" + on_cloud + "' must be " + enumNameList(kOnCloudNames));
+    ParamReader::fail(read.name("on_cloud"),
+                      "= '" + on_cloud + "' must be " + enumNameList(kOnCloudNames));
   }
   params.on_cloud = *parsed_on_cloud;
   const ModeParam mode = readMode(read);
@@ -329,7 +332,8 @@ void readObjects(ParamReader& read, NodeConfig& config) {
     const std::string path = "objects[" + std::to_string(i) + "]";
     ObjectParams object = parseObject((*objects)[i], path);
     if (!names.insert(object.object.name).second) {
-      ParamReader::fail(path + ".name", "= '" + object.object.name + "' is used by an earlier object");
+      ParamReader::fail(path + ".name",
+                        "= '" + object.object.name + "' is used by an earlier object");
     }
     if (!topics.insert(object.topic).second) {
       ParamReader::fail(path + ".topic", "= '" + object.topic + "' is used by an earlier object");
@@ -369,7 +373,8 @@ void readStep(ParamReader& read, NodeConfig& config, std::vector<std::string>& w
     ParamReader::fail(read.name(key), "= '" + text + "' must be a number in (0, 0.1] or 'stamp'");
   }
   if (config.cycle_on != CycleOn::kClouds) {
-    ParamReader::fail(read.name(key), "= 'stamp' needs cycle_on: clouds (the clouds' stamps time the cycles)");
+    ParamReader::fail(read.name(key),
+                      "= 'stamp' needs cycle_on: clouds (the clouds' stamps time the cycles)");
   }
   config.dt_from_stamps = true;
   config.scene.dt_s = std::min(1.0 / config.rate_hz, 0.1);
@@ -389,8 +394,9 @@ void readLevel(ParamReader& read, SceneConfig& scene) {
     ParamReader::fail("level", "= '" + text + "' must be an integer in [-1, 255] or 'auto'");
   }
   if (!budget_given) {
-    ParamReader::fail("level", "= 'auto' needs cycle_budget_ms (> 0: ms of detection and "
-                               "response per cycle)");
+    ParamReader::fail("level",
+                      "= 'auto' needs cycle_budget_ms (> 0: ms of detection and "
+                      "response per cycle)");
   }
   scene.cycle_budget_ms = read.number("cycle_budget_ms", 0.0, 0.0, 1e6, true);
 }
@@ -399,12 +405,12 @@ void readLevel(ParamReader& read, SceneConfig& scene) {
 /// registered one.
 void checkCloudsStartCycles(const NodeConfig& config) {
   if (config.cycle_on != CycleOn::kClouds) return;
-  const bool any = std::any_of(config.objects.begin(), config.objects.end(), [](const ObjectParams& o) {
-    return followsClouds(o.on_cloud);
-  });
+  const bool any = std::any_of(config.objects.begin(), config.objects.end(),
+                               [](const ObjectParams& o) { return followsClouds(o.on_cloud); });
   if (!any) {
-    ParamReader::fail("cycle_on", "= 'clouds' needs an object with on_cloud: track or register, "
-                                  "whose clouds start the cycles");
+    ParamReader::fail("cycle_on",
+                      "= 'clouds' needs an object with on_cloud: track or register, "
+                      "whose clouds start the cycles");
   }
 }
 
@@ -416,16 +422,18 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   config.fixed_frame = read.text("fixed_frame", config.fixed_frame);
   if (config.fixed_frame.empty()) ParamReader::fail("fixed_frame", "is empty");
   if (config.fixed_frame[0] == '/') {
-    ParamReader::fail("fixed_frame", "= '" + config.fixed_frame + "' starts with '/', which tf2 refuses");
+    ParamReader::fail("fixed_frame",
+                      "= '" + config.fixed_frame + "' starts with '/', which tf2 refuses");
   }
   config.rate_hz = read.number("rate_hz", config.rate_hz, 0.0, 10000.0, true);
   readCycleOn(read, config);
-  config.max_points_per_object = static_cast<std::size_t>(read.integer(
-      "max_points_per_object", static_cast<long>(config.max_points_per_object), 1,
-      std::numeric_limits<int>::max()));
+  config.max_points_per_object = static_cast<std::size_t>(
+      read.integer("max_points_per_object", static_cast<long>(config.max_points_per_object), 1,
+                   std::numeric_limits<int>::max()));
 
   config.tf_wait_s = read.number("tf_wait_s", config.tf_wait_s, 0.0, 60.0);
-  config.max_coordinate_m = read.number("max_coordinate_m", config.max_coordinate_m, 0.0, 1e12, true);
+  config.max_coordinate_m =
+      read.number("max_coordinate_m", config.max_coordinate_m, 0.0, 1e12, true);
   SceneConfig& scene = config.scene;
   readStep(read, config, warnings);
   scene.gravity_mps2 =
@@ -436,8 +444,10 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   scene.friction = read.number("friction", scene.friction, 0.0, 1e3);
   if (const XmlRpcValue* tree = read.find("tree")) {
     ParamReader tree_read(*tree, "tree");
-    scene.tree.leaf_size = static_cast<int>(tree_read.integer("leaf_size", scene.tree.leaf_size, 1, 1 << 20));
-    scene.tree.branching = static_cast<int>(tree_read.integer("branching", scene.tree.branching, 2, 64));
+    scene.tree.leaf_size =
+        static_cast<int>(tree_read.integer("leaf_size", scene.tree.leaf_size, 1, 1 << 20));
+    scene.tree.branching =
+        static_cast<int>(tree_read.integer("branching", scene.tree.branching, 2, 64));
     scene.tree.exact_radius_points = static_cast<int>(
         tree_read.integer("exact_radius_points", scene.tree.exact_radius_points, 0, 1 << 20));
     tree_read.finish();
@@ -447,7 +457,8 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   }
   if (const XmlRpcValue* markers = read.find("markers")) {
     ParamReader markers_read(*markers, "markers");
-    config.markers_colliding_only = markers_read.flag("colliding_only", config.markers_colliding_only);
+    config.markers_colliding_only =
+        markers_read.flag("colliding_only", config.markers_colliding_only);
     markers_read.finish();
   }
 

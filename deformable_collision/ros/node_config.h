@@ -35,16 +35,16 @@ inline const char* toString(OnCloud on_cloud) { return enumName(kOnCloudNames, o
 /// (at most at rate_hz).
 enum class CycleOn { kTimer, kClouds };
 
-inline constexpr EnumNames<CycleOn, 2> kCycleOnNames{{{CycleOn::kTimer, "timer"},
-                                                     {CycleOn::kClouds, "clouds"}}};
+inline constexpr EnumNames<CycleOn, 2> kCycleOnNames{
+    {{CycleOn::kTimer, "timer"}, {CycleOn::kClouds, "clouds"}}};
 
 inline const char* toString(CycleOn cycle_on) { return enumName(kCycleOnNames, cycle_on); }
 
 /// One entry of the `objects` parameter.
 struct ObjectParams {
-  std::string topic;          ///< PointCloud2 input, resolved in the node's namespace.
+  std::string topic;  ///< PointCloud2 input, resolved in the node's namespace.
   OnCloud on_cloud = OnCloud::kIgnore;
-  std::string follow_frame;   ///< Kinematic objects: the tf frame they move with.
+  std::string follow_frame;  ///< Kinematic objects: the tf frame they move with.
   /// on_cloud register: the rest shape's file (PLY or PCD, metres), empty for the first
   /// cloud's finite points; and the tf frame its coordinates are in (fixed_frame if unset).
   std::string model_file;

@@ -57,8 +57,8 @@ bool DeformableCollisionNode::placeModel(ObjectSlot& slot) {
   const std::size_t count = slot.model_points.size();
   slot.model_points = {};
   ROS_INFO("object '%s': rest shape of %zu points from %s at the pose of '%s', %s",
-           params.object.name.c_str(), count, params.model_file.c_str(),
-           params.model_frame.c_str(), toString(params.object.kind));
+           params.object.name.c_str(), count, params.model_file.c_str(), params.model_frame.c_str(),
+           toString(params.object.kind));
   warnIfPorous(params.object.name, scene_.body(*slot.index).positions());
   return true;
 }
@@ -84,12 +84,13 @@ void DeformableCollisionNode::reportHeld(ObjectSlot& slot) {
   const auto now = Clock::now();
   if (slot.last_held_report && now - *slot.last_held_report < kHeldReportPeriod) return;
   const RegistrationReport& report = slot.registration;
-  ROS_WARN("object '%s' held where it was: its cloud on %s matched %zu of %zu thinned points "
-           "within register/max_correspondence_m, fewer than register/min_match_ratio = %.2f "
-           "(%zu clouds held since the last report)",
-           slot.params.object.name.c_str(), slot.subscriber.getTopic().c_str(),
-           report.used_points, report.used_points + report.rejected_points,
-           config_.scene.registration.min_match_ratio, slot.held_unreported);
+  ROS_WARN(
+      "object '%s' held where it was: its cloud on %s matched %zu of %zu thinned points "
+      "within register/max_correspondence_m, fewer than register/min_match_ratio = %.2f "
+      "(%zu clouds held since the last report)",
+      slot.params.object.name.c_str(), slot.subscriber.getTopic().c_str(), report.used_points,
+      report.used_points + report.rejected_points, config_.scene.registration.min_match_ratio,
+      slot.held_unreported);
   slot.last_held_report = now;
   slot.held_unreported = 0;
 }

@@ -42,12 +42,14 @@ bool hostIsBigEndian() {
 }
 
 /// Where x, y and z are in a point; an empty string, or what is wrong with the fields.
-std::string findCoordinateFields(const sensor_msgs::PointCloud2& cloud, CoordinateField (&fields)[3]) {
+std::string findCoordinateFields(const sensor_msgs::PointCloud2& cloud,
+                                 CoordinateField (&fields)[3]) {
   std::ostringstream error;
   const char* names[3] = {"x", "y", "z"};
   for (int axis = 0; axis < 3; ++axis) {
-    const auto found = std::find_if(cloud.fields.begin(), cloud.fields.end(),
-                                    [&](const sensor_msgs::PointField& f) { return f.name == names[axis]; });
+    const auto found =
+        std::find_if(cloud.fields.begin(), cloud.fields.end(),
+                     [&](const sensor_msgs::PointField& f) { return f.name == names[axis]; });
     if (found == cloud.fields.end()) {
       error << "field '" << names[axis] << "' is missing";
       return error.str();
@@ -100,7 +102,8 @@ void readCheckedPoints(const sensor_msgs::PointCloud2& cloud, ReadPoint read_poi
                        CloudReadResult& result) {
   points.reserve(static_cast<std::size_t>(cloud.width) * cloud.height);
   for (std::uint32_t row = 0; row < cloud.height; ++row) {
-    const std::uint8_t* row_start = cloud.data.data() + static_cast<std::size_t>(row) * cloud.row_step;
+    const std::uint8_t* row_start =
+        cloud.data.data() + static_cast<std::size_t>(row) * cloud.row_step;
     for (std::uint32_t column = 0; column < cloud.width; ++column) {
       const std::size_t offset = static_cast<std::size_t>(column) * cloud.point_step;
       Eigen::Vector3d p = read_point(row_start + offset);

@@ -44,7 +44,8 @@ std::vector<Eigen::Vector3d> slab(const Eigen::Vector3d& half_extents, double sp
                                   const Eigen::Vector3d& center) {
   std::vector<Eigen::Vector3d> points;
   const auto steps = [&](double half) { return std::max(1, int(std::lround(2 * half / spacing))); };
-  const int nx = steps(half_extents.x()), ny = steps(half_extents.y()), nz = steps(half_extents.z());
+  const int nx = steps(half_extents.x()), ny = steps(half_extents.y()),
+            nz = steps(half_extents.z());
   for (int i = 0; i <= nx; ++i) {
     for (int j = 0; j <= ny; ++j) {
       for (int k = 0; k <= nz; ++k) {
@@ -66,10 +67,12 @@ void requirePoints(std::size_t points, std::size_t least, DemoScene scene) {
 
 void buildTwoObjects(Scene& scene, std::size_t points) {
   const std::size_t each = points / 2;
-  const auto a = scene.addObject(softObject("ball_a", DeformationMode::kQuadratic, 4, 2.0),
-                                 placed(sampleEllipsoid(each, {0.3, 0.25, 0.25}, 1), {-0.45, 0, 0}));
-  const auto b = scene.addObject(softObject("ball_b", DeformationMode::kQuadratic, 4, 2.0),
-                                 placed(sampleEllipsoid(each, {0.3, 0.25, 0.25}, 2), {0.45, 0.05, 0}));
+  const auto a =
+      scene.addObject(softObject("ball_a", DeformationMode::kQuadratic, 4, 2.0),
+                      placed(sampleEllipsoid(each, {0.3, 0.25, 0.25}, 1), {-0.45, 0, 0}));
+  const auto b =
+      scene.addObject(softObject("ball_b", DeformationMode::kQuadratic, 4, 2.0),
+                      placed(sampleEllipsoid(each, {0.3, 0.25, 0.25}, 2), {0.45, 0.05, 0}));
   for (const auto& [object, speed] : {std::pair{a, 1.0}, std::pair{b, -1.0}}) {
     std::vector<Eigen::Vector3d> velocity(scene.body(object).pointCount(),
                                           Eigen::Vector3d(speed, 0, 0));
@@ -81,7 +84,8 @@ void buildPile(Scene& scene, std::size_t points) {
   constexpr int kObjects = 300;
   const std::size_t each = points / kObjects;
   const double half = 0.6;
-  scene.addObject(fixedObject("floor", ObjectKind::kStatic), slab({half, half, 0.01}, 0.02, {0, 0, -0.01}));
+  scene.addObject(fixedObject("floor", ObjectKind::kStatic),
+                  slab({half, half, 0.01}, 0.02, {0, 0, -0.01}));
   // Walls higher than the initial stack (about 1.6 m), so nothing falls out over them.
   scene.addObject(fixedObject("wall_x_minus", ObjectKind::kStatic),
                   slab({0.01, half, 1.0}, 0.02, {-half - 0.01, 0, 1.0}));
@@ -129,11 +133,14 @@ void buildThreeObjects(Scene& scene, std::size_t points) {
 }
 
 void buildGripper(Scene& scene, std::size_t points) {
-  scene.addObject(fixedObject("floor", ObjectKind::kStatic), slab({0.4, 0.4, 0.01}, 0.02, {0, 0, -0.01}));
+  scene.addObject(fixedObject("floor", ObjectKind::kStatic),
+                  slab({0.4, 0.4, 0.01}, 0.02, {0, 0, -0.01}));
   scene.addObject(softObject("fruit", DeformationMode::kQuadratic, 3, 0.3),
                   placed(sampleEllipsoid(points, {0.1, 0.1, 0.1}, 5), {0, 0, 0.105}));
-  scene.addObject(fixedObject("jaw_left", ObjectKind::kKinematic), slab({0.02, 0.08, 0.08}, 0.01, {0, 0, 0}));
-  scene.addObject(fixedObject("jaw_right", ObjectKind::kKinematic), slab({0.02, 0.08, 0.08}, 0.01, {0, 0, 0}));
+  scene.addObject(fixedObject("jaw_left", ObjectKind::kKinematic),
+                  slab({0.02, 0.08, 0.08}, 0.01, {0, 0, 0}));
+  scene.addObject(fixedObject("jaw_right", ObjectKind::kKinematic),
+                  slab({0.02, 0.08, 0.08}, 0.01, {0, 0, 0}));
   driveDemoScene(DemoScene::kGripper, scene, 0.0);
 }
 
@@ -167,8 +174,8 @@ std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points, SceneC
   const SceneDefaults defaults = sceneDefaults(scene);
   if (points == 0) points = defaults.point_count;
   requirePoints(points, defaults.least_point_count, scene);
-  config.gravity_mps2 = scene == DemoScene::kTwoObjects ? Eigen::Vector3d::Zero()
-                                                        : Eigen::Vector3d(0.0, 0.0, -9.81);
+  config.gravity_mps2 =
+      scene == DemoScene::kTwoObjects ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.0, 0.0, -9.81);
   config.contact_distance_m = std::max(config.contact_distance_m, defaults.contact_distance_m);
   auto built = std::make_unique<Scene>(config);
   switch (scene) {

@@ -17,10 +17,11 @@ enum class DemoScene {
   kGripper,       ///< A soft ball on a floor, squeezed by the two rigid jaws of a gripper.
 };
 
-inline constexpr EnumNames<DemoScene, 4> kDemoSceneNames{{{DemoScene::kTwoObjects, "two_objects"},
-                                                       {DemoScene::kPile, "pile"},
-                                                       {DemoScene::kThreeObjects, "three_objects"},
-                                                       {DemoScene::kGripper, "gripper"}}};
+inline constexpr EnumNames<DemoScene, 4> kDemoSceneNames{
+    {{DemoScene::kTwoObjects, "two_objects"},
+     {DemoScene::kPile, "pile"},
+     {DemoScene::kThreeObjects, "three_objects"},
+     {DemoScene::kGripper, "gripper"}}};
 
 /// The scene named `name` (kDemoSceneNames); std::nullopt otherwise.
 inline std::optional<DemoScene> parseDemoScene(const std::string& name) {

@@ -138,9 +138,8 @@ void publishFixedClouds(const CameraGripperScene& scene, const CameraPublisherPa
 
 /// The camera's and the jaws' frames at `time_s`, stamped `now`: sent before the clouds, so
 /// that a listener can place the clouds as soon as they arrive.
-void publishFrames(const CameraGripperScene& scene, const std::string& fixed_frame,
-                   double time_s, const ros::Time& now,
-                   tf2_ros::TransformBroadcaster& broadcaster) {
+void publishFrames(const CameraGripperScene& scene, const std::string& fixed_frame, double time_s,
+                   const ros::Time& now, tf2_ros::TransformBroadcaster& broadcaster) {
   broadcaster.sendTransform(
       toTransformStamped(scene.cameraPose(time_s), now, fixed_frame, kCameraFrame));
   broadcaster.sendTransform(
@@ -156,8 +155,8 @@ void publishCameraClouds(const CameraGripperScene& scene, const CameraPublisherP
   auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
   cloud->header.stamp = now;
   cloud->header.frame_id = kCameraFrame;
-  writeOrganizedCloud(scene.cloud(), params.scene.camera.width_px,
-                      params.scene.camera.height_px, *cloud);
+  writeOrganizedCloud(scene.cloud(), params.scene.camera.width_px, params.scene.camera.height_px,
+                      *cloud);
   camera_cloud.publish(cloud);
   auto truth = boost::make_shared<sensor_msgs::PointCloud2>();
   truth->header.stamp = now;

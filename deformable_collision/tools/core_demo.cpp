@@ -96,10 +96,10 @@ std::uint64_t runCycles(dc::DemoScene kind, int cycles, dc::Scene& scene) {
                   s.detection_ms, s.response_ms, s.contacts, s.spheres_updated);
     }
   }
-  std::printf("\nmean per cycle: shape matching %.3f ms, detection %.3f ms, response %.3f ms, "
-              "%.0f contacts\n",
-              shape_matching / cycles, detection / cycles, response / cycles,
-              double(contacts) / cycles);
+  std::printf(
+      "\nmean per cycle: shape matching %.3f ms, detection %.3f ms, response %.3f ms, "
+      "%.0f contacts\n",
+      shape_matching / cycles, detection / cycles, response / cycles, double(contacts) / cycles);
   return contact_hash.value();
 }
 

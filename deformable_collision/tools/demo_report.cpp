@@ -122,11 +122,12 @@ class GroundTruthScore {
     // A ground truth arrives a render's time after its stamp, when models newer than that
     // stamp may have come already: the one to score is the newest stamped before it.
     if (pending_truth_) {
-      const auto before_next = std::find_if(
-          models_.rbegin(), models_.rend(), [&](const sensor_msgs::PointCloud2::ConstPtr& model) {
-            return model->header.stamp < truth->header.stamp;
-          });
-      if (before_next != models_.rend() && (*before_next)->header.stamp >= pending_truth_->header.stamp) {
+      const auto before_next = std::find_if(models_.rbegin(), models_.rend(),
+                                            [&](const sensor_msgs::PointCloud2::ConstPtr& model) {
+                                              return model->header.stamp < truth->header.stamp;
+                                            });
+      if (before_next != models_.rend() &&
+          (*before_next)->header.stamp >= pending_truth_->header.stamp) {
         score(*pending_truth_, **before_next);
       }
     }
@@ -232,46 +233,49 @@ bool watch(const StatsRecord& record, const std::string& node, double duration_s
 
 void printLatencies(StatsRecord& record) {
   if (record.latency.count > 0) {
-    std::printf("cloud arrival to contacts published, oldest cloud of each cycle: mean %.3f ms, "
-                "p99 %.3f ms, max %.3f ms (%zu cycles)\n",
-                record.latency.mean(), percentile99(record.latencies_ms), record.latency.max,
-                record.latency.count);
+    std::printf(
+        "cloud arrival to contacts published, oldest cloud of each cycle: mean %.3f ms, "
+        "p99 %.3f ms, max %.3f ms (%zu cycles)\n",
+        record.latency.mean(), percentile99(record.latencies_ms), record.latency.max,
+        record.latency.count);
   }
   const LatencyPeriods& periods = record.latency_periods;
   if (periods.clouds > 0) {
-    std::printf("per cloud, over the node's %zu latency periods (%zu clouds), to contacts "
-                "published: from arrival mean %.3f ms, worst p99 %.3f ms, max %.3f ms; from "
-                "stamp mean %.3f ms, worst p99 %.3f ms, max %.3f ms\n",
-                periods.periods, periods.clouds, periods.arrival_sum_ms / periods.clouds,
-                periods.arrival_worst_p99_ms, periods.arrival_max_ms,
-                periods.stamp_sum_ms / periods.clouds, periods.stamp_worst_p99_ms,
-                periods.stamp_max_ms);
+    std::printf(
+        "per cloud, over the node's %zu latency periods (%zu clouds), to contacts "
+        "published: from arrival mean %.3f ms, worst p99 %.3f ms, max %.3f ms; from "
+        "stamp mean %.3f ms, worst p99 %.3f ms, max %.3f ms\n",
+        periods.periods, periods.clouds, periods.arrival_sum_ms / periods.clouds,
+        periods.arrival_worst_p99_ms, periods.arrival_max_ms, periods.stamp_sum_ms / periods.clouds,
+        periods.stamp_worst_p99_ms, periods.stamp_max_ms);
   }
 }
 
 void printReport(StatsRecord& record, double duration_s) {
   const deformable_collision::Stats& last = record.last;
-  std::printf("\n=== deformable_collision demo report (%.1f s, %zu cycles", duration_s, record.cycles);
+  std::printf("\n=== deformable_collision demo report (%.1f s, %zu cycles", duration_s,
+              record.cycles);
   if (record.warmup_s > 0.0) {
     std::printf("; figures from %zu cycles after a warm-up of %.1f s", record.cycle.count,
                 record.warmup_s);
   }
   std::printf(") ===\n");
-  std::printf("objects %u (the last made %.1f s after the first cycle%s), points %u, level of "
-              "detail %u of %u (leaves)\n",
-              last.objects, record.last_object_made_s,
-              record.warmup_s > 0.0 && record.last_object_made_s >= record.warmup_s
-                  ? ", after the warm-up"
-                  : "",
-              last.points, last.level, last.max_level);
-  std::printf("per cycle, mean / max ms: input %.3f / %.3f, shape matching %.3f / %.3f, "
-              "detection %.3f / %.3f (and ahead of the cycle %.3f / %.3f), response %.3f / %.3f, "
-              "publish %.3f / %.3f, whole %.3f / %.3f\n",
-              record.input.mean(), record.input.max, record.shape_matching.mean(),
-              record.shape_matching.max, record.detection.mean(), record.detection.max,
-              record.detection_ahead.mean(), record.detection_ahead.max, record.response.mean(),
-              record.response.max, record.publish.mean(), record.publish.max, record.cycle.mean(),
-              record.cycle.max);
+  std::printf(
+      "objects %u (the last made %.1f s after the first cycle%s), points %u, level of "
+      "detail %u of %u (leaves)\n",
+      last.objects, record.last_object_made_s,
+      record.warmup_s > 0.0 && record.last_object_made_s >= record.warmup_s ? ", after the warm-up"
+                                                                            : "",
+      last.points, last.level, last.max_level);
+  std::printf(
+      "per cycle, mean / max ms: input %.3f / %.3f, shape matching %.3f / %.3f, "
+      "detection %.3f / %.3f (and ahead of the cycle %.3f / %.3f), response %.3f / %.3f, "
+      "publish %.3f / %.3f, whole %.3f / %.3f\n",
+      record.input.mean(), record.input.max, record.shape_matching.mean(),
+      record.shape_matching.max, record.detection.mean(), record.detection.max,
+      record.detection_ahead.mean(), record.detection_ahead.max, record.response.mean(),
+      record.response.max, record.publish.mean(), record.publish.max, record.cycle.mean(),
+      record.cycle.max);
   std::printf("contacts per cycle: mean %.1f, max %.0f, last %u\n", record.contacts.mean(),
               record.contacts.max, last.contacts);
   printLatencies(record);
@@ -305,10 +309,9 @@ int main(int argc, char** argv) {
   StatsRecord record;
   record.warmup_s = private_handle.param("warmup_s", 0.0);
   ros::Subscriber stats_subscriber = node_handle.subscribe<deformable_collision::Stats>(
-      "stats", 100, boost::function<void(const deformable_collision::Stats::ConstPtr&)>(
-                        [&record](const deformable_collision::Stats::ConstPtr& stats) {
-                          record.add(*stats);
-                        }));
+      "stats", 100,
+      boost::function<void(const deformable_collision::Stats::ConstPtr&)>(
+          [&record](const deformable_collision::Stats::ConstPtr& stats) { record.add(*stats); }));
   // Subscribed so that the node builds its contacts as a user's controller would make it.
   ros::Subscriber contacts_subscriber = node_handle.subscribe<deformable_collision::ContactArray>(
       "contacts", 1,
@@ -323,8 +326,7 @@ int main(int argc, char** argv) {
 
   deformable_collision::GetContacts query;
   query.request.level = deformable_collision::GetContacts::Request::RUNNING;
-  const bool answered =
-      ros::service::call(node + "/get_contacts", query) && query.response.success;
+  const bool answered = ros::service::call(node + "/get_contacts", query) && query.response.success;
   printReport(record, duration_s);
   for (const GroundTruthScore& score : scores) score.print();
   if (answered) {

@@ -59,9 +59,10 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
   params.scene_kind = *scene_kind;
   if (!(params.rate_hz >= 10.0 && params.rate_hz <= 1000.0) || params.points < 0 ||
       !(params.settle_s >= 0.0 && params.settle_s <= 60.0)) {
-    ROS_FATAL("~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s), "
-              "~points = %d >= 0 and ~settle_s = %g in [0, 60]", params.rate_hz, params.points,
-              params.settle_s);
+    ROS_FATAL(
+        "~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s), "
+        "~points = %d >= 0 and ~settle_s = %g in [0, 60]",
+        params.rate_hz, params.points, params.settle_s);
     return std::nullopt;
   }
   return params;
@@ -105,8 +106,9 @@ void lengthenXmlRpcBacklog() {
     closedir(descriptors);
   }
   if (!lengthened) {
-    ROS_WARN("scene_publisher: its XML-RPC server keeps a backlog of 5: a node that subscribes "
-             "to many of its topics at once may be connected to some only seconds later");
+    ROS_WARN(
+        "scene_publisher: its XML-RPC server keeps a backlog of 5: a node that subscribes "
+        "to many of its topics at once may be connected to some only seconds later");
   }
 }
 
@@ -120,9 +122,10 @@ void publishScene(const PublisherParams& params, const deformable_collision::Sce
     const bool kinematic = object.kind == deformable_collision::ObjectKind::kKinematic;
     if (kinematic) {
       // A kinematic object is its rest shape in its own frame, moved by tf.
-      const auto pose = deformable_collision::demoKinematicPose(params.scene_kind, object.name, time_s);
-      broadcaster.sendTransform(toTransformStamped(pose.value_or(Eigen::Isometry3d::Identity()), now,
-                                            params.fixed_frame, object.name));
+      const auto pose =
+          deformable_collision::demoKinematicPose(params.scene_kind, object.name, time_s);
+      broadcaster.sendTransform(toTransformStamped(pose.value_or(Eigen::Isometry3d::Identity()),
+                                                   now, params.fixed_frame, object.name));
     }
     if (publishers[i].getNumSubscribers() == 0) continue;
     auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
@@ -168,8 +171,8 @@ int main(int argc, char** argv) {
 
   std::vector<ros::Publisher> publishers;
   for (std::size_t i = 0; i < scene->objectCount(); ++i) {
-    publishers.push_back(
-        node_handle.advertise<sensor_msgs::PointCloud2>(scene->objectConfig(i).name + "/points", 2));
+    publishers.push_back(node_handle.advertise<sensor_msgs::PointCloud2>(
+        scene->objectConfig(i).name + "/points", 2));
   }
   tf2_ros::TransformBroadcaster broadcaster;
   ROS_INFO("scene_publisher: scene '%s' with %zu objects at %.1f Hz%s, settled for %d cycles",

@@ -111,42 +111,55 @@ TEST_P(DegenerateSphereTest, EnclosesWithTheSmallestRadius) {
 
 INSTANTIATE_TEST_SUITE_P(
     Cases, DegenerateSphereTest,
-    ::testing::Values(
-        DegenerateCase{"single_point", [] { return Points{{3, -2, 1}}; }, 0.0},
-        DegenerateCase{"all_coincident", [] { return Points(50, Eigen::Vector3d(1, 1, 1)); }, 0.0},
-        DegenerateCase{"collinear_1000", [] { return collinear(1000, {1, 2, 3}, 0.01); }, 4.995},
-        DegenerateCase{"collinear_far_1e5",
-                       [] { return collinear(200, {1e5, -1e5, 1e5}, 0.01); }, 0.995},
-        DegenerateCase{"coplanar_square",
-                       [] {
-                         Points p;
-                         for (int i = 0; i <= 20; ++i)
-                           for (int j = 0; j <= 20; ++j) p.emplace_back(0.1 * i, 0.1 * j, 5.0);
-                         return p;
-                       },
-                       std::sqrt(2.0)},
-        DegenerateCase{"cube_corners_repeated",
-                       [] {
-                         Points p;
-                         for (int r = 0; r < 5; ++r)
-                           for (int i = 0; i < 8; ++i)
-                             p.emplace_back(i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1);
-                         return p;
-                       },
-                       std::sqrt(3.0)},
-        DegenerateCase{"tiny_1e_minus4",
-                       [] {
-                         Points p = sampleBox(8, {1e-4, 1e-4, 1e-4}, 5);
-                         return p;
-                       },
-                       -1.0},
-        DegenerateCase{"huge_1e4_far",
-                       [] {
-                         Points p = sampleBox(8, {1e4, 1e4, 1e4}, 6);
-                         for (auto& x : p) x += Eigen::Vector3d(1e5, 1e5, -1e5);
-                         return p;
-                       },
-                       -1.0}),
+    ::testing::Values(DegenerateCase{"single_point",
+                                     [] {
+                                       return Points{{3, -2, 1}};
+                                     },
+                                     0.0},
+                      DegenerateCase{"all_coincident",
+                                     [] { return Points(50, Eigen::Vector3d(1, 1, 1)); }, 0.0},
+                      DegenerateCase{"collinear_1000",
+                                     [] {
+                                       return collinear(1000, {1, 2, 3}, 0.01);
+                                     },
+                                     4.995},
+                      DegenerateCase{"collinear_far_1e5",
+                                     [] {
+                                       return collinear(200, {1e5, -1e5, 1e5}, 0.01);
+                                     },
+                                     0.995},
+                      DegenerateCase{"coplanar_square",
+                                     [] {
+                                       Points p;
+                                       for (int i = 0; i <= 20; ++i)
+                                         for (int j = 0; j <= 20; ++j)
+                                           p.emplace_back(0.1 * i, 0.1 * j, 5.0);
+                                       return p;
+                                     },
+                                     std::sqrt(2.0)},
+                      DegenerateCase{"cube_corners_repeated",
+                                     [] {
+                                       Points p;
+                                       for (int r = 0; r < 5; ++r)
+                                         for (int i = 0; i < 8; ++i)
+                                           p.emplace_back(i & 1 ? 1 : -1, i & 2 ? 1 : -1,
+                                                          i & 4 ? 1 : -1);
+                                       return p;
+                                     },
+                                     std::sqrt(3.0)},
+                      DegenerateCase{"tiny_1e_minus4",
+                                     [] {
+                                       Points p = sampleBox(8, {1e-4, 1e-4, 1e-4}, 5);
+                                       return p;
+                                     },
+                                     -1.0},
+                      DegenerateCase{"huge_1e4_far",
+                                     [] {
+                                       Points p = sampleBox(8, {1e4, 1e4, 1e4}, 6);
+                                       for (auto& x : p) x += Eigen::Vector3d(1e5, 1e5, -1e5);
+                                       return p;
+                                     },
+                                     -1.0}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(SmallestEnclosingSphere, EnclosesLargeSetsAtAnyScale) {

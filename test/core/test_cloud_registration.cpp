@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "deformable_collision/core/hierarchy/sphere_tree.h"
 #include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/core/shape_matching/shape_matching.h"
-#include "deformable_collision/core/hierarchy/sphere_tree.h"
 
 namespace deformable_collision {
 namespace {
@@ -35,7 +35,8 @@ SurfaceSamples boxSurface(std::size_t count, std::uint64_t seed) {
   std::mt19937_64 random(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   const Eigen::Vector3d& h = kHalfExtents;
-  const double areas[3] = {h.y() * h.z(), h.x() * h.z(), h.x() * h.y()};  // Faces normal to x, y, z.
+  const double areas[3] = {h.y() * h.z(), h.x() * h.z(),
+                           h.x() * h.y()};  // Faces normal to x, y, z.
   const double total = areas[0] + areas[1] + areas[2];
   std::uniform_real_distribution<double> pick(0.0, total);
   SurfaceSamples samples;
@@ -67,7 +68,8 @@ Eigen::Vector3d rigidMotion(const Eigen::Vector3d& p, double amount) {
 Eigen::Vector3d affineStretch(const Eigen::Vector3d& p, double amount) {
   Eigen::Matrix3d a;
   a << 1.15, 0.06, 0.0, 0.0, 0.88, 0.04, 0.02, 0.0, 1.1;
-  const Eigen::Matrix3d blended = Eigen::Matrix3d::Identity() + amount * (a - Eigen::Matrix3d::Identity());
+  const Eigen::Matrix3d blended =
+      Eigen::Matrix3d::Identity() + amount * (a - Eigen::Matrix3d::Identity());
   return blended * p + amount * Eigen::Vector3d(0.01, 0.0, -0.005);
 }
 
@@ -174,30 +176,44 @@ TEST_P(KnownDeformationTest, RecoversTheModelsPoints) {
   EXPECT_GT(report.used_points, 0u);
   // The matches lie on the model to the noise, plus what the prior holds back.
   EXPECT_LE(report.mean_residual_m, 3.0 * c.noise_m + 1.5e-3);
-  std::printf("%-28s seen mean %.2f max %.2f mm, hidden mean %.2f max %.2f mm, %zu used %zu rejected, %.2f ms\n",
-              c.name, 1e3 * seen_sum / seen, 1e3 * seen_max, hidden ? 1e3 * hidden_sum / hidden : 0.0,
-              1e3 * hidden_max, report.used_points, report.rejected_points, report.time_ms);
+  std::printf(
+      "%-28s seen mean %.2f max %.2f mm, hidden mean %.2f max %.2f mm, %zu used %zu rejected, %.2f "
+      "ms\n",
+      c.name, 1e3 * seen_sum / seen, 1e3 * seen_max, hidden ? 1e3 * hidden_sum / hidden : 0.0,
+      1e3 * hidden_max, report.used_points, report.rejected_points, report.time_ms);
 }
 
-const Eigen::Vector3d kOneSide(1.0, -1.0, 2.0);  // Sees the top, a long side and an end: half the surface.
+const Eigen::Vector3d kOneSide(1.0, -1.0,
+                               2.0);  // Sees the top, a long side and an end: half the surface.
 
 INSTANTIATE_TEST_SUITE_P(
     Cases, KnownDeformationTest,
-    ::testing::Values(
-        RegistrationCase{"rigid_full", DeformationMode::kRigid, 1, rigidMotion, std::nullopt, 0.0, 0.0, 0.5e-3, 1e-3, 0, 0},
-        RegistrationCase{"rigid_one_side_noisy", DeformationMode::kRigid, 1, rigidMotion, kOneSide, 0.001, 0.05, 0.5e-3, 1e-3, 0.5e-3, 1e-3},
-        // The prior pulls towards the shape-matching goal, whose beta (0.5 here) holds
-        // back part of a stretch that the matches show.
-        RegistrationCase{"affine_full", DeformationMode::kLinear, 1, affineStretch, std::nullopt, 0.0, 0.0, 3e-3, 6e-3, 0, 0},
-        RegistrationCase{"twist_quadratic_full_noisy", DeformationMode::kQuadratic, 3, twist, std::nullopt, 0.001, 0.05, 1.5e-3, 4.5e-3, 0, 0},
-        RegistrationCase{"bend_linear_one_side_noisy", DeformationMode::kLinear, 8, bend, kOneSide, 0.001, 0.05, 2e-3, 7e-3, 2e-3, 7e-3},
-        RegistrationCase{"bend_quadratic_one_side_noisy", DeformationMode::kQuadratic, 3, bend, kOneSide, 0.001, 0.05, 2e-3, 6e-3, 2e-3, 6e-3},
-        RegistrationCase{"twist_linear_one_side_noisy", DeformationMode::kLinear, 8, twist, kOneSide, 0.001, 0.05, 3e-3, 9e-3, 3e-3, 9e-3},
-        // Seen from one side, a stretch along a seen face shows only where the face ends:
-        // point-to-plane matches leave it to the prior, and the errors are several times
-        // the noise (docs/design.md, registration, known limits).
-        RegistrationCase{"affine_one_side_noisy", DeformationMode::kLinear, 4, affineStretch, kOneSide, 0.001, 0.05, 10e-3, 20e-3, 15e-3, 22e-3}),
-    [](const ::testing::TestParamInfo<RegistrationCase>& info) { return std::string(info.param.name); });
+    ::testing::Values(RegistrationCase{"rigid_full", DeformationMode::kRigid, 1, rigidMotion,
+                                       std::nullopt, 0.0, 0.0, 0.5e-3, 1e-3, 0, 0},
+                      RegistrationCase{"rigid_one_side_noisy", DeformationMode::kRigid, 1,
+                                       rigidMotion, kOneSide, 0.001, 0.05, 0.5e-3, 1e-3, 0.5e-3,
+                                       1e-3},
+                      // The prior pulls towards the shape-matching goal, whose beta (0.5 here)
+                      // holds back part of a stretch that the matches show.
+                      RegistrationCase{"affine_full", DeformationMode::kLinear, 1, affineStretch,
+                                       std::nullopt, 0.0, 0.0, 3e-3, 6e-3, 0, 0},
+                      RegistrationCase{"twist_quadratic_full_noisy", DeformationMode::kQuadratic, 3,
+                                       twist, std::nullopt, 0.001, 0.05, 1.5e-3, 4.5e-3, 0, 0},
+                      RegistrationCase{"bend_linear_one_side_noisy", DeformationMode::kLinear, 8,
+                                       bend, kOneSide, 0.001, 0.05, 2e-3, 7e-3, 2e-3, 7e-3},
+                      RegistrationCase{"bend_quadratic_one_side_noisy", DeformationMode::kQuadratic,
+                                       3, bend, kOneSide, 0.001, 0.05, 2e-3, 6e-3, 2e-3, 6e-3},
+                      RegistrationCase{"twist_linear_one_side_noisy", DeformationMode::kLinear, 8,
+                                       twist, kOneSide, 0.001, 0.05, 3e-3, 9e-3, 3e-3, 9e-3},
+                      // Seen from one side, a stretch along a seen face shows only where the face
+                      // ends: point-to-plane matches leave it to the prior, and the errors are
+                      // several times the noise (docs/design.md, registration, known limits).
+                      RegistrationCase{"affine_one_side_noisy", DeformationMode::kLinear, 4,
+                                       affineStretch, kOneSide, 0.001, 0.05, 10e-3, 20e-3, 15e-3,
+                                       22e-3}),
+    [](const ::testing::TestParamInfo<RegistrationCase>& info) {
+      return std::string(info.param.name);
+    });
 
 /// The largest distance by which a point of a node lies outside the node's sphere shrunk
 /// by `shrink_m(node)`, over every node of the tree (<= 0: all inside).
@@ -208,9 +224,10 @@ double worstOverhang(SphereTree& tree, const ShapeMatchingBody& body,
   for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
     const Sphere& sphere = tree.sphere(n);
     const SphereNode& node = tree.node(n);
-    for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+    for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count;
+         ++slot) {
       const double outside = (body.positions()[tree.pointIndices()[slot]] - sphere.center).norm() -
-                              (sphere.radius - shrink_m(node));
+                             (sphere.radius - shrink_m(node));
       worst = std::max(worst, outside);
     }
   }
@@ -222,7 +239,8 @@ double worstOverhang(SphereTree& tree, const ShapeMatchingBody& body,
 // what makes it so (spheres without it miss points).
 TEST(RegisteredHierarchy, EncloresEveryModelPointAfterEveryCloud) {
   const SurfaceSamples model = boxSurface(3000, 11);
-  for (const DeformationMode mode : {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
+  for (const DeformationMode mode :
+       {DeformationMode::kRigid, DeformationMode::kLinear, DeformationMode::kQuadratic}) {
     ShapeMatchingConfig shape;
     shape.mode = mode;
     shape.clusters = 4;
@@ -233,7 +251,8 @@ TEST(RegisteredHierarchy, EncloresEveryModelPointAfterEveryCloud) {
     for (int frame = 1; frame <= 12; ++frame) {
       const double amount = frame / 12.0;
       const auto deform = [&](const Eigen::Vector3d& p, double a) { return twist(bend(p, a), a); };
-      registration.registerCloud(body, cloudOf(deform, amount, 4000, kOneSide, 0.002, 0.05, 300 + frame),
+      registration.registerCloud(body,
+                                 cloudOf(deform, amount, 4000, kOneSide, 0.002, 0.05, 300 + frame),
                                  Eigen::Vector3d(0.5 * kOneSide.normalized()));
       ASSERT_LE(worstOverhang(tree, body, [](const SphereNode&) { return 0.0; }), 0.0)
           << toString(mode) << " cloud " << frame;
@@ -242,7 +261,8 @@ TEST(RegisteredHierarchy, EncloresEveryModelPointAfterEveryCloud) {
             return node.cluster < 0 ? 0.0 : body.deformation(node.cluster).goal_deviation_bound_m;
           }));
     }
-    EXPECT_GT(worst_without_d, 0.0) << toString(mode) << ": spheres without d would not miss a point";
+    EXPECT_GT(worst_without_d, 0.0)
+        << toString(mode) << ": spheres without d would not miss a point";
   }
 }
 
@@ -265,8 +285,8 @@ TEST(HeldCloud, ModelStaysForCloudsThatMissTheObject) {
   }
   // Clouds of any size after a miss register again.
   for (const std::size_t count : {300, 5000, 900}) {
-    const RegistrationReport report =
-        registration.registerCloud(body, cloudOf(rigidMotion, 0.02, count, std::nullopt, 0.0, 0.0, count));
+    const RegistrationReport report = registration.registerCloud(
+        body, cloudOf(rigidMotion, 0.02, count, std::nullopt, 0.0, 0.0, count));
     EXPECT_FALSE(report.held) << count << " points";
     EXPECT_GT(report.used_points, 3 * report.rejected_points) << count << " points";
   }
@@ -305,10 +325,11 @@ TEST(SceneRegistration, FindsContactsOnTheHiddenSide) {
   constexpr int kClouds = 20;
   const Eigen::Vector3d camera = 0.5 * kOneSide.normalized();
   for (int frame = 1; frame <= kClouds; ++frame) {
-    ASSERT_FALSE(scene.registerCloud(sponge_index,
-                                     cloudOf(rigidMotion, static_cast<double>(frame) / kClouds, 6000,
-                                             kOneSide, 0.001, 0.05, 500 + frame),
-                                     camera)
+    ASSERT_FALSE(scene
+                     .registerCloud(sponge_index,
+                                    cloudOf(rigidMotion, static_cast<double>(frame) / kClouds, 6000,
+                                            kOneSide, 0.001, 0.05, 500 + frame),
+                                    camera)
                      .held);
   }
   // Probes under the bottom face (-z, which the camera never sees), where it truly is.
@@ -321,11 +342,13 @@ TEST(SceneRegistration, FindsContactsOnTheHiddenSide) {
     }
     return probe;
   };
-  const Eigen::Vector3d touch_point = rigidMotion(Eigen::Vector3d(0.0, 0.0, -kHalfExtents.z()), 1.0);
+  const Eigen::Vector3d touch_point =
+      rigidMotion(Eigen::Vector3d(0.0, 0.0, -kHalfExtents.z()), 1.0);
   ObjectConfig touching{"touching_probe", ObjectKind::kKinematic, {}};
   ObjectConfig apart{"probe_apart", ObjectKind::kKinematic, {}};
   const std::size_t touching_index = scene.addObject(touching, probeAt(0.001));
-  const std::size_t apart_index = scene.addObject(apart, probeAt(0.001 + 2 * config.contact_distance_m));
+  const std::size_t apart_index =
+      scene.addObject(apart, probeAt(0.001 + 2 * config.contact_distance_m));
   scene.setPose(touching_index, Eigen::Isometry3d::Identity());
   scene.setPose(apart_index, Eigen::Isometry3d::Identity());
   std::vector<SceneContact> contacts;
@@ -374,7 +397,8 @@ TEST(SceneRegistration, LeavesOutCloudPointsNearOtherObjects) {
   for (const Eigen::Vector3d& p : cloud) {
     if (!p.allFinite()) continue;
     bool close = false;
-    for (const Eigen::Vector3d& q : other) close = close || (p - q).norm() < config.contact_distance_m;
+    for (const Eigen::Vector3d& q : other)
+      close = close || (p - q).norm() < config.contact_distance_m;
     near += close ? 1 : 0;
     if (!close) kept.push_back(p);
   }
@@ -412,7 +436,8 @@ TEST(SceneRegistration, LeavesOutCloudPointsNearOtherObjects) {
 TEST(SceneRegistration, AJawsPointsDoNotHoldTheModelOut) {
   SceneConfig config;
   config.contact_distance_m = 0.005;
-  constexpr double kPress = 0.004;  // The sponge moves 4 mm away from the camera's side, into the jaw's place.
+  constexpr double kPress =
+      0.004;  // The sponge moves 4 mm away from the camera's side, into the jaw's place.
   const auto moved = [](const Eigen::Vector3d& p, double amount) {
     return Eigen::Vector3d(p + Eigen::Vector3d(0.0, -kPress * amount, 0.0));
   };
@@ -449,8 +474,10 @@ TEST(SceneRegistration, AJawsPointsDoNotHoldTheModelOut) {
   };
   const double with_jaw_points = meanError(false);
   const double without = meanError(true);
-  std::printf("[ MEASURED ] mean error of the pressed sponge: %.2f mm with the jaw's points, "
-              "%.2f mm without\n", 1e3 * with_jaw_points, 1e3 * without);
+  std::printf(
+      "[ MEASURED ] mean error of the pressed sponge: %.2f mm with the jaw's points, "
+      "%.2f mm without\n",
+      1e3 * with_jaw_points, 1e3 * without);
   EXPECT_LT(without, 0.5e-3);
   EXPECT_GT(with_jaw_points, 1e-3) << "the jaw's points must have held the model out";
 }

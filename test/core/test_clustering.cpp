@@ -50,15 +50,14 @@ TEST_P(PartitionTest, CoversEveryPointBalancedAndDeterministic) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Cases, PartitionTest,
-    ::testing::Values(PartitionCase{"one_cluster", 500, 1, 0.1},
-                      PartitionCase{"two_disjoint", 500, 2, 0.0},
-                      PartitionCase{"three_disjoint", 501, 3, 0.0},
-                      PartitionCase{"seven_disjoint", 1000, 7, 0.0},
-                      PartitionCase{"four_overlapping", 1000, 4, 0.1},
-                      PartitionCase{"one_point_per_cluster", 5, 5, 0.0}),
-    [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(Cases, PartitionTest,
+                         ::testing::Values(PartitionCase{"one_cluster", 500, 1, 0.1},
+                                           PartitionCase{"two_disjoint", 500, 2, 0.0},
+                                           PartitionCase{"three_disjoint", 501, 3, 0.0},
+                                           PartitionCase{"seven_disjoint", 1000, 7, 0.0},
+                                           PartitionCase{"four_overlapping", 1000, 4, 0.1},
+                                           PartitionCase{"one_point_per_cluster", 5, 5, 0.0}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 TEST(Partition, CoincidentPointsSplitDeterministically) {
   const std::vector<Eigen::Vector3d> points(10, Eigen::Vector3d(1.0, 2.0, 3.0));

@@ -69,9 +69,8 @@ TwoBodies randomScene(std::uint64_t seed, std::size_t points_a = 700, std::size_
   ShapeMatchingConfig cb = ca;
   cb.mode = static_cast<DeformationMode>((seed + 1) % 3);
   const Points rest_a = sampleEllipsoid(points_a, {0.3, 0.2, 0.2}, seed * 2 + 1);
-  const Points rest_b =
-      shifted(sampleEllipsoid(points_b, {0.25, 0.25, 0.15}, seed * 2 + 2),
-              {0.35 + 0.1 * unit(engine), 0.05 * unit(engine), 0.0});
+  const Points rest_b = shifted(sampleEllipsoid(points_b, {0.25, 0.25, 0.15}, seed * 2 + 2),
+                                {0.35 + 0.1 * unit(engine), 0.05 * unit(engine), 0.0});
   TwoBodies scene{ShapeMatchingBody(rest_a, ca), ShapeMatchingBody(rest_b, cb)};
   std::normal_distribution<double> noise(0.0, 0.02);
   for (ShapeMatchingBody* body : {&scene.a, &scene.b}) {
@@ -116,7 +115,8 @@ TEST_P(NoMissedContactTest, LeafContactsCoverExactlyTheBruteForcePairs) {
       query.collide(ta, tb, std::max(ta.maxLevel(), tb.maxLevel()), contact_distance, contacts,
                     counters);
 
-      const auto truth = bruteForcePairs(scene.a.positions(), scene.b.positions(), contact_distance);
+      const auto truth =
+          bruteForcePairs(scene.a.positions(), scene.b.positions(), contact_distance);
       ASSERT_FALSE(truth.empty()) << "seed " << seed << ": the scene must touch";
       const auto covered = coveredPairs(ta, tb, contacts);
       for (const auto& pair : truth) {
@@ -180,8 +180,8 @@ TEST_P(VectorWidthTest, FindsTheSameContactsBitForBit) {
       std::vector<SphereContact> wide;
       QueryCounters counters;
       const int leaves = std::max(ta.maxLevel(), tb.maxLevel());
-      HierarchyQuery(VectorWidth::kPortable).collide(ta, tb, leaves, contact_distance, portable,
-                                                     counters);
+      HierarchyQuery(VectorWidth::kPortable)
+          .collide(ta, tb, leaves, contact_distance, portable, counters);
       HierarchyQuery(GetParam()).collide(ta, tb, leaves, contact_distance, wide, counters);
       ASSERT_FALSE(portable.empty()) << "seed " << seed;
       SCOPED_TRACE("seed " + std::to_string(seed));
@@ -205,9 +205,9 @@ TEST_P(VectorWidthTest, BreaksTiesAsThePortableTestDoes) {
     }
     return points;
   };
-  TwoBodies scene{ShapeMatchingBody(block(Eigen::Vector3d::Zero()), ShapeMatchingConfig{}),
-                  ShapeMatchingBody(block(Eigen::Vector3d(7.0, 0.5, 0.5) / 128.0),
-                                    ShapeMatchingConfig{})};
+  TwoBodies scene{
+      ShapeMatchingBody(block(Eigen::Vector3d::Zero()), ShapeMatchingConfig{}),
+      ShapeMatchingBody(block(Eigen::Vector3d(7.0, 0.5, 0.5) / 128.0), ShapeMatchingConfig{})};
   for (const SphereTreeConfig& config : {SphereTreeConfig{2, 8}, SphereTreeConfig{2, 5}}) {
     SphereTree ta(scene.a, config);
     SphereTree tb(scene.b, config);
@@ -392,8 +392,8 @@ Work leafQuery(const ShapeMatchingBody& a, const ShapeMatchingBody& b, double co
   QueryCounters counters;
   query.collide(ta, tb, 1000, contact_distance, contacts, counters);
   return {ta.nodeCount() + tb.nodeCount(),
-          ta.counters().spheres_updated + tb.counters().spheres_updated,
-          counters.node_pairs_tested, contacts.size()};
+          ta.counters().spheres_updated + tb.counters().spheres_updated, counters.node_pairs_tested,
+          contacts.size()};
 }
 
 TEST(LevelOfDetail, SeparatedObjectsCostOneSphereTest) {

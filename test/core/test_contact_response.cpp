@@ -100,7 +100,7 @@ TEST_P(CoarseDentTest, MovesOnlyThePointsShortOfTheSurface) {
   scene.cycle();
   // The object's own move is its top point's, which nothing dents.
   const auto top = std::max_element(points.begin(), points.end(),
-                                     [](const auto& p, const auto& q) { return p.z() < q.z(); });
+                                    [](const auto& p, const auto& q) { return p.z() < q.z(); });
   const double moved_up = scene.body(index).positions()[top - points.begin()].z() - top->z();
   EXPECT_GT(moved_up, 0.0);
   std::size_t moved_more = 0;
@@ -115,14 +115,14 @@ TEST_P(CoarseDentTest, MovesOnlyThePointsShortOfTheSurface) {
   EXPECT_GE(lowestZ(scene.body(index)), cleared_z - 1e-9);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    LevelsAndModes, CoarseDentTest,
-    ::testing::Combine(::testing::Values(1, 2, 3),
-                       ::testing::Values(DeformationMode::kLinear, DeformationMode::kQuadratic)),
-    [](const auto& info) {
-      return "level_" + std::to_string(std::get<0>(info.param)) + "_" +
-             toString(std::get<1>(info.param));
-    });
+INSTANTIATE_TEST_SUITE_P(LevelsAndModes, CoarseDentTest,
+                         ::testing::Combine(::testing::Values(1, 2, 3),
+                                            ::testing::Values(DeformationMode::kLinear,
+                                                              DeformationMode::kQuadratic)),
+                         [](const auto& info) {
+                           return "level_" + std::to_string(std::get<0>(info.param)) + "_" +
+                                  toString(std::get<1>(info.param));
+                         });
 
 // ---------------------------------------------------------------------------------------
 // An object that stays put carries no velocity. Where static friction holds a pair in place

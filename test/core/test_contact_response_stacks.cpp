@@ -22,8 +22,8 @@ namespace {
 // A stiff stack (alpha = 1) at a long step (h = 0.05 s): three boxes dropped onto each other
 // on a floor stand still for 1000 cycles, in every mode, at every level: 0 to 5 and the
 // finest (the boxes' hierarchies end at level 6, where the floor meets them at its leaves).
-// At this step gravity alone takes a resting box 2.5 cm down per cycle, more than the contact distance,
-// and a pushed box walks sideways by its contact normals' tilt unless friction holds it.
+// At this step gravity alone takes a resting box 2.5 cm down per cycle, more than the contact
+// distance, and a pushed box walks sideways by its contact normals' tilt unless friction holds it.
 // At coarse levels a contact must not end before the push that clears it is done, or the
 // top box hops and slides off.
 
@@ -58,7 +58,8 @@ TEST_P(StiffStackTest, StandsStillForAThousandLongSteps) {
     box.shape.clusters = c.clusters;
     box.shape.stiffness = 1.0;
     Points points = sampleBox(500, {kHalfSide, kHalfSide, kHalfSide}, 3 + k);
-    for (auto& p : points) p.z() += kHalfSide + config.contact_distance_m / 2 + k * (2 * kHalfSide + 0.02);
+    for (auto& p : points)
+      p.z() += kHalfSide + config.contact_distance_m / 2 + k * (2 * kHalfSide + 0.02);
     boxes.push_back(scene.addObject(box, points));
   }
 
@@ -84,17 +85,19 @@ TEST_P(StiffStackTest, StandsStillForAThousandLongSteps) {
     // Still on the box below: its centre above the lower box's top face, and not beyond
     // its sides.
     const Eigen::Vector3d below = meanPosition(scene.body(boxes[k - 1]));
-    EXPECT_GT(at.z() - below.z(), 2 * kHalfSide - config.contact_distance_m) << "box " << k << " sank in";
+    EXPECT_GT(at.z() - below.z(), 2 * kHalfSide - config.contact_distance_m)
+        << "box " << k << " sank in";
     EXPECT_LT((at - below).head<2>().norm(), kHalfSide) << "box " << k << " slid off";
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(
     ModesAndLevels, StiffStackTest,
-    ::testing::Combine(::testing::Values(StackMode{"rigid", DeformationMode::kRigid, 1},
-                                         StackMode{"linear_2_clusters", DeformationMode::kLinear, 2},
-                                         StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}),
-                       ::testing::Values(0, 1, 2, 3, 4, 5, -1)),
+    ::testing::Combine(
+        ::testing::Values(StackMode{"rigid", DeformationMode::kRigid, 1},
+                          StackMode{"linear_2_clusters", DeformationMode::kLinear, 2},
+                          StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}),
+        ::testing::Values(0, 1, 2, 3, 4, 5, -1)),
     [](const auto& info) {
       const int level = std::get<1>(info.param);
       return std::string(std::get<0>(info.param).name) +
@@ -124,7 +127,8 @@ struct RestingStackCase {
 };
 
 void PrintTo(const RestingStackCase& c, std::ostream* os) {
-  *os << (c.arrangement == StackArrangement::kTwoAgainstAWall ? "two against a wall, " : "three added top first, ")
+  *os << (c.arrangement == StackArrangement::kTwoAgainstAWall ? "two against a wall, "
+                                                              : "three added top first, ")
       << c.mode.name << " stiffness " << c.stiffness << " level " << c.level;
 }
 
@@ -134,7 +138,8 @@ Points wallPoints(double face_x_m) {
   Points wall;
   for (int j = -20; j <= 20; ++j) {
     for (int k = 1; k <= 25; ++k) {
-      for (int layer = 0; layer < 2; ++layer) wall.emplace_back(face_x_m - 0.02 * layer, 0.02 * j, 0.02 * k);
+      for (int layer = 0; layer < 2; ++layer)
+        wall.emplace_back(face_x_m - 0.02 * layer, 0.02 * j, 0.02 * k);
     }
   }
   return wall;
@@ -197,11 +202,13 @@ std::vector<RestingStackCase> restingStackCases() {
   std::vector<RestingStackCase> cases;
   for (const StackArrangement arrangement :
        {StackArrangement::kTwoAgainstAWall, StackArrangement::kThreeAddedTopFirst}) {
-    for (const StackMode mode : {StackMode{"rigid", DeformationMode::kRigid, 1},
-                                 StackMode{"linear", DeformationMode::kLinear, 1},
-                                 StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}}) {
+    for (const StackMode mode :
+         {StackMode{"rigid", DeformationMode::kRigid, 1},
+          StackMode{"linear", DeformationMode::kLinear, 1},
+          StackMode{"quadratic_3_clusters", DeformationMode::kQuadratic, 3}}) {
       for (const double stiffness : {0.2, 1.0}) {
-        for (const int level : {0, 1, 2, 3, 4, 5, -1}) cases.push_back({arrangement, mode, stiffness, level});
+        for (const int level : {0, 1, 2, 3, 4, 5, -1})
+          cases.push_back({arrangement, mode, stiffness, level});
       }
     }
   }
@@ -215,7 +222,8 @@ INSTANTIATE_TEST_SUITE_P(ArrangementsModesStiffnessesAndLevels, RestingStackTest
                                                   ? "against_a_wall_"
                                                   : "added_top_first_") +
                                   c.mode.name + (c.stiffness < 1.0 ? "_soft" : "_stiff") +
-                                  (c.level < 0 ? std::string("_finest") : "_level_" + std::to_string(c.level));
+                                  (c.level < 0 ? std::string("_finest")
+                                               : "_level_" + std::to_string(c.level));
                          });
 
 // ---------------------------------------------------------------------------------------
@@ -247,7 +255,8 @@ TEST_P(SoftStackTest, PointsOfTwoObjectsStayApart) {
     for (auto& p : points) p = turn * p + Eigen::Vector3d(0.02 * (k % 2), 0.0, 0.08 + 0.13 * k);
     scene.addObject(soft, points);
   }
-  if (GetParam() > scene.maxLevel()) GTEST_SKIP() << "the scene has " << scene.maxLevel() << " levels";
+  if (GetParam() > scene.maxLevel())
+    GTEST_SKIP() << "the scene has " << scene.maxLevel() << " levels";
 
   double closest = std::numeric_limits<double>::infinity();
   for (int cycle = 0; cycle < 400; ++cycle) {

@@ -32,17 +32,17 @@ struct ProfileCase {
   std::vector<double> profile;
   double budget_ms;
   double noise;
-  int step_cycle;      ///< -1: no step.
+  int step_cycle;  ///< -1: no step.
   double step_factor;
   int expected_level;  ///< The finest level within headroom x budget, after the step if any.
   int check_from;      ///< The expected level is checked from this cycle on.
 };
 
 struct RunFigures {
-  int cycles_checked = 0;   ///< From the warm-up on.
+  int cycles_checked = 0;  ///< From the warm-up on.
   int within_budget = 0;
   int switches = 0;
-  int at_expected = 0;      ///< From check_from on.
+  int at_expected = 0;  ///< From check_from on.
   int expected_checked = 0;
 };
 
@@ -274,7 +274,7 @@ TEST(LevelBudget, WhenNothingFitsADearStretchOfFinerLevelsIsNotRunThrough) {
   LevelBudget budget(10.0, 5);
   for (int cycle = 0; cycle < 500; ++cycle) budget.record(costs[budget.level()]);
   EXPECT_EQ(budget.level(), 2);
-  EXPECT_TRUE(budget.estimateMs(3));   // dearer than level 2: the finer levels end there
+  EXPECT_TRUE(budget.estimateMs(3));  // dearer than level 2: the finer levels end there
   EXPECT_FALSE(budget.estimateMs(4));
   EXPECT_FALSE(budget.estimateMs(5));
 }
@@ -335,7 +335,6 @@ TEST(LevelBudget, RefusesABadBudgetCostOrTuning) {
     EXPECT_THROW(LevelBudget(1.0, 3, bad), std::invalid_argument);
   }
 }
-
 
 // The scene in budget mode: three_objects (19k points) at a few ms per cycle.
 

@@ -55,7 +55,11 @@ INSTANTIATE_TEST_SUITE_P(
         // Costs are not monotone: a coarse level dearer than a finer one does not stop it.
         PickCase{"FinerLevelCheaper", {0.2, 3.0, 0.8, 2.0}, 1.0, 3, 2, Basis::kWithinBudget},
         // A level never measured is no candidate, however large the budget.
-        PickCase{"NeverMeasuredLevelsAreNotGuessed", {0.2, kNever, kNever}, 100.0, 2, 0,
+        PickCase{"NeverMeasuredLevelsAreNotGuessed",
+                 {0.2, kNever, kNever},
+                 100.0,
+                 2,
+                 0,
                  Basis::kWithinBudget},
         PickCase{"NoneFitsTheCheapest", {3.0, 2.0, 2.5, kNever}, 1.0, 3, 1, Basis::kCheapest},
         PickCase{"NoneFitsEqualCostsTheCoarsest", {3.0, 2.0, 2.0}, 1.0, 2, 1, Basis::kCheapest},

@@ -32,8 +32,8 @@ TEST(PseudoInverse, PlanarMomentKeepsTheNormalAsNullSpace) {
   const Eigen::Matrix3d m = Eigen::Vector3d(2.0, 5.0, 0.0).asDiagonal();
   const auto result = pseudoInverseSymmetric<3>(m);
   EXPECT_EQ(result.rank, 2);
-  EXPECT_TRUE(result.inverse.isApprox(Eigen::Vector3d(0.5, 0.2, 0.0).asDiagonal().toDenseMatrix(),
-                                      1e-12));
+  EXPECT_TRUE(
+      result.inverse.isApprox(Eigen::Vector3d(0.5, 0.2, 0.0).asDiagonal().toDenseMatrix(), 1e-12));
   EXPECT_TRUE(result.null_projector.isApprox(
       Eigen::Vector3d(0.0, 0.0, 1.0).asDiagonal().toDenseMatrix(), 1e-12));
 }
@@ -65,18 +65,19 @@ TEST_P(ExtractRotationTest, RecoversTheRotationOfRotationTimesStretch) {
   extractRotation(matrix, q, 100);
   expectProperRotation(q);
   EXPECT_TRUE(q.toRotationMatrix().isApprox(rotation, 1e-9))
-      << q.toRotationMatrix() << "\nexpected\n" << rotation;
+      << q.toRotationMatrix() << "\nexpected\n"
+      << rotation;
 }
 
 INSTANTIATE_TEST_SUITE_P(
     Cases, ExtractRotationTest,
-    ::testing::Values(
-        RotationCase{"identity", 0.0, {1, 0, 0}, {1, 1, 1}},
-        RotationCase{"quarter_turn_z", kPi / 2, {0, 0, 1}, {1, 1, 1}},
-        RotationCase{"oblique_120deg_stretched", 2 * kPi / 3, {1, 2, 3}, {2.0, 0.5, 1.0}},
-        RotationCase{"near_half_turn", 0.95 * kPi, {0, 1, 1}, {1, 1, 1}},
-        RotationCase{"tiny_scale", 0.3, {1, 0, 1}, {1e-8, 2e-8, 3e-8}},
-        RotationCase{"huge_scale", 0.3, {1, 1, 0}, {1e8, 2e8, 3e8}}),
+    ::testing::Values(RotationCase{"identity", 0.0, {1, 0, 0}, {1, 1, 1}},
+                      RotationCase{"quarter_turn_z", kPi / 2, {0, 0, 1}, {1, 1, 1}},
+                      RotationCase{
+                          "oblique_120deg_stretched", 2 * kPi / 3, {1, 2, 3}, {2.0, 0.5, 1.0}},
+                      RotationCase{"near_half_turn", 0.95 * kPi, {0, 1, 1}, {1, 1, 1}},
+                      RotationCase{"tiny_scale", 0.3, {1, 0, 1}, {1e-8, 2e-8, 3e-8}},
+                      RotationCase{"huge_scale", 0.3, {1, 1, 0}, {1e8, 2e8, 3e8}}),
     [](const auto& info) { return std::string(info.param.name); });
 
 struct NamedMatrix {
@@ -102,8 +103,7 @@ Eigen::Matrix3d rankOne() {
 INSTANTIATE_TEST_SUITE_P(
     Cases, DegenerateRotationTest,
     ::testing::Values(
-        NamedMatrix{"zero", Eigen::Matrix3d::Zero()},
-        NamedMatrix{"rank_one", rankOne()},
+        NamedMatrix{"zero", Eigen::Matrix3d::Zero()}, NamedMatrix{"rank_one", rankOne()},
         NamedMatrix{"rank_two", Eigen::Vector3d(1, 2, 0).asDiagonal().toDenseMatrix()},
         NamedMatrix{"reflection", Eigen::Vector3d(-1, 1, 1).asDiagonal().toDenseMatrix()},
         NamedMatrix{"point_inversion", -Eigen::Matrix3d::Identity()},
@@ -130,19 +130,17 @@ Eigen::Matrix3d turned(const Eigen::Vector3d& stretch) {
 
 INSTANTIATE_TEST_SUITE_P(
     Cases, SpectralNormTest,
-    ::testing::Values(
-        NamedMatrix{"zero", Eigen::Matrix3d::Zero()},
-        NamedMatrix{"identity", Eigen::Matrix3d::Identity()},
-        NamedMatrix{"rotation", turned({1, 1, 1})},
-        NamedMatrix{"stretched", turned({3, 2, 1})},
-        NamedMatrix{"inverted", turned({-3, 2, 1})},
-        NamedMatrix{"rank_one", rankOne()},
-        NamedMatrix{"flat", turned({2, 1, 0})},
-        NamedMatrix{"two_equal_largest", turned({2, 2, 0.5})},
-        NamedMatrix{"nearly_equal", turned({1, 1 - 1e-15, 1 - 2e-15})},
-        NamedMatrix{"anisotropic", turned({1e6, 1, 1e-6})},
-        NamedMatrix{"huge", turned({3e300, 2e300, 1e300})},
-        NamedMatrix{"tiny", turned({3e-300, 2e-300, 1e-300})}),
+    ::testing::Values(NamedMatrix{"zero", Eigen::Matrix3d::Zero()},
+                      NamedMatrix{"identity", Eigen::Matrix3d::Identity()},
+                      NamedMatrix{"rotation", turned({1, 1, 1})},
+                      NamedMatrix{"stretched", turned({3, 2, 1})},
+                      NamedMatrix{"inverted", turned({-3, 2, 1})},
+                      NamedMatrix{"rank_one", rankOne()}, NamedMatrix{"flat", turned({2, 1, 0})},
+                      NamedMatrix{"two_equal_largest", turned({2, 2, 0.5})},
+                      NamedMatrix{"nearly_equal", turned({1, 1 - 1e-15, 1 - 2e-15})},
+                      NamedMatrix{"anisotropic", turned({1e6, 1, 1e-6})},
+                      NamedMatrix{"huge", turned({3e300, 2e300, 1e300})},
+                      NamedMatrix{"tiny", turned({3e-300, 2e-300, 1e-300})}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(SpectralNorm, RandomMatricesOfEveryScale) {

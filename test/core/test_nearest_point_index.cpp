@@ -52,9 +52,15 @@ TEST_P(NearestPointIndexTest, FindsThePointBruteForceFinds) {
   for (int q = 0; q < 300; ++q) {
     Eigen::Vector3d query;
     switch (q % 3) {
-      case 0: query = points[q % points.size()]; break;
-      case 1: query = points[q % points.size()] + 0.01 * size * inCube(random, 1.0); break;
-      default: query = centre + 2.0 * size * inCube(random, 1.0); break;
+      case 0:
+        query = points[q % points.size()];
+        break;
+      case 1:
+        query = points[q % points.size()] + 0.01 * size * inCube(random, 1.0);
+        break;
+      default:
+        query = centre + 2.0 * size * inCube(random, 1.0);
+        break;
     }
     double best = std::numeric_limits<double>::infinity();
     for (const auto& p : points) best = std::min(best, (p - query).squaredNorm());
@@ -68,28 +74,52 @@ TEST_P(NearestPointIndexTest, FindsThePointBruteForceFinds) {
 
 INSTANTIATE_TEST_SUITE_P(
     Shapes, NearestPointIndexTest,
-    ::testing::Values(
-        IndexCase{"OnePoint", 1, [](std::size_t, std::mt19937&) -> Eigen::Vector3d { return Eigen::Vector3d(1, 2, 3); }},
-        IndexCase{"ALeafFull", 8, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 1.0); }},
-        IndexCase{"OneMoreThanALeaf", 9, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 1.0); }},
-        IndexCase{"Cube", 5000, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 0.1); }},
-        IndexCase{"Plane", 3000,
-                  [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return Eigen::Vector3d(uniform(r, -1, 1), uniform(r, -1, 1), 0.0); }},
-        IndexCase{"Line", 2000,
-                  [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return Eigen::Vector3d(0.0, uniform(r, -1, 1), 0.0); }},
-        IndexCase{"AllTheSamePoint", 500,
-                  [](std::size_t, std::mt19937&) -> Eigen::Vector3d { return Eigen::Vector3d(0.3, 0.3, 0.3); }},
-        IndexCase{"GridWithTies", 1000,
-                  [](std::size_t k, std::mt19937&) -> Eigen::Vector3d {
-                    return Eigen::Vector3d(0.01 * (k % 10), 0.01 * (k / 10 % 10), 0.01 * (k / 100));
-                  }},
-        IndexCase{"TwoClustersFarApart", 2000,
-                  [](std::size_t k, std::mt19937& r) -> Eigen::Vector3d {
-                    return Eigen::Vector3d(k % 2 ? 10.0 : -10.0, 0, 0) + inCube(r, 0.01);
-                  }},
-        IndexCase{"FarFromTheOrigin", 2000,
-                  [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return Eigen::Vector3d(1e5, -1e5, 1e5) + inCube(r, 0.1); }},
-        IndexCase{"TinyScale", 2000, [](std::size_t, std::mt19937& r) -> Eigen::Vector3d { return inCube(r, 1e-4); }}),
+    ::testing::Values(IndexCase{"OnePoint", 1,
+                                [](std::size_t, std::mt19937&) -> Eigen::Vector3d {
+                                  return Eigen::Vector3d(1, 2, 3);
+                                }},
+                      IndexCase{"ALeafFull", 8,
+                                [](std::size_t, std::mt19937& r) -> Eigen::Vector3d {
+                                  return inCube(r, 1.0);
+                                }},
+                      IndexCase{"OneMoreThanALeaf", 9,
+                                [](std::size_t, std::mt19937& r) -> Eigen::Vector3d {
+                                  return inCube(r, 1.0);
+                                }},
+                      IndexCase{"Cube", 5000,
+                                [](std::size_t, std::mt19937& r) -> Eigen::Vector3d {
+                                  return inCube(r, 0.1);
+                                }},
+                      IndexCase{"Plane", 3000,
+                                [](std::size_t, std::mt19937& r) -> Eigen::Vector3d {
+                                  return Eigen::Vector3d(uniform(r, -1, 1), uniform(r, -1, 1), 0.0);
+                                }},
+                      IndexCase{"Line", 2000,
+                                [](std::size_t, std::mt19937& r) -> Eigen::Vector3d {
+                                  return Eigen::Vector3d(0.0, uniform(r, -1, 1), 0.0);
+                                }},
+                      IndexCase{"AllTheSamePoint", 500,
+                                [](std::size_t, std::mt19937&) -> Eigen::Vector3d {
+                                  return Eigen::Vector3d(0.3, 0.3, 0.3);
+                                }},
+                      IndexCase{"GridWithTies", 1000,
+                                [](std::size_t k, std::mt19937&) -> Eigen::Vector3d {
+                                  return Eigen::Vector3d(0.01 * (k % 10), 0.01 * (k / 10 % 10),
+                                                         0.01 * (k / 100));
+                                }},
+                      IndexCase{"TwoClustersFarApart", 2000,
+                                [](std::size_t k, std::mt19937& r) -> Eigen::Vector3d {
+                                  return Eigen::Vector3d(k % 2 ? 10.0 : -10.0, 0, 0) +
+                                         inCube(r, 0.01);
+                                }},
+                      IndexCase{"FarFromTheOrigin", 2000,
+                                [](std::size_t, std::mt19937& r) -> Eigen::Vector3d {
+                                  return Eigen::Vector3d(1e5, -1e5, 1e5) + inCube(r, 0.1);
+                                }},
+                      IndexCase{"TinyScale", 2000,
+                                [](std::size_t, std::mt19937& r) -> Eigen::Vector3d {
+                                  return inCube(r, 1e-4);
+                                }}),
     [](const auto& info) { return info.param.name; });
 
 TEST(NearestPointIndex, EmptyIndexFindsNothing) {

@@ -31,8 +31,7 @@ Points grid(double half_m, int layers, const Eigen::Isometry3d& pose) {
   return points;
 }
 
-Eigen::Isometry3d turned(double angle_rad, const Eigen::Vector3d& axis,
-                         const Eigen::Vector3d& at) {
+Eigen::Isometry3d turned(double angle_rad, const Eigen::Vector3d& axis, const Eigen::Vector3d& at) {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.translate(at);
   pose.rotate(Eigen::AngleAxisd(angle_rad, axis.normalized()));
@@ -121,8 +120,8 @@ TEST(NodeSlabs, NeverCallAPairApartThatComesWithinReach) {
 // them under a matrix that is not quite a rotation.
 TEST(NodeSlabs, FollowAPoseWithoutVisitingThePoints) {
   Eigen::Isometry3d sheared = turned(0.7, {0.2, 1, -0.4}, {0.3, -0.1, 0.2});
-  sheared.linear() *= (Eigen::Matrix3d() << 1.02, 0.03, 0.0, 0.0, 0.98, 0.01, 0.02, 0.0, 1.0)
-                          .finished();
+  sheared.linear() *=
+      (Eigen::Matrix3d() << 1.02, 0.03, 0.0, 0.0, 0.98, 0.01, 0.02, 0.0, 1.0).finished();
   const struct {
     const char* name;
     Eigen::Isometry3d pose;

@@ -357,8 +357,9 @@ TEST(Scene, PreparedObjectsAreCheckedWhenAdded) {
   ObjectConfig other;
   other.name = "other";
   const Points before = scene.body(b).positions();
-  EXPECT_THROW(scene.resetRestShape(b, scene.prepareObject(other, sampleBox(60, {0.1, 0.1, 0.1}, 3))),
-               std::invalid_argument);
+  EXPECT_THROW(
+      scene.resetRestShape(b, scene.prepareObject(other, sampleBox(60, {0.1, 0.1, 0.1}, 3))),
+      std::invalid_argument);
   EXPECT_THROW(scene.resetRestShape(b, Scene::PreparedObject()), std::invalid_argument);
   EXPECT_EQ(scene.body(b).positions(), before);
 }

@@ -12,8 +12,8 @@
 #include <random>
 #include <vector>
 
-#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/core/scene/scene.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/scenes/shapes.h"
 
 namespace {
@@ -152,7 +152,8 @@ TEST(Scene, SteadyStateRegistrationsAllocateNothing) {
                                      Eigen::AngleAxisd(0.01 * frame, Eigen::Vector3d::UnitZ());
     std::vector<Eigen::Vector3d> cloud;
     for (std::size_t i = frame % 3; i < rest.size(); i += 1 + frame % 3) {
-      cloud.push_back(motion * rest[i] + Eigen::Vector3d(noise(random), noise(random), noise(random)));
+      cloud.push_back(motion * rest[i] +
+                      Eigen::Vector3d(noise(random), noise(random), noise(random)));
     }
     std::shuffle(cloud.begin(), cloud.end(), random);
     clouds.push_back(std::move(cloud));

@@ -71,11 +71,10 @@ TEST(Scene, LeafContactsCoverEveryClosePointPairOfTheScene) {
   for (const auto& pair : truth) missed += covered.count(pair) == 0;
   EXPECT_EQ(missed, 0u) << "of " << truth.size() << " close point pairs";
   // Object pairs come in the order of their objects, whatever order the sweep saw them in.
-  EXPECT_TRUE(std::is_sorted(contacts.begin(), contacts.end(),
-                             [](const SceneContact& x, const SceneContact& y) {
-                               return std::tie(x.object_a, x.object_b) <
-                                      std::tie(y.object_a, y.object_b);
-                             }));
+  EXPECT_TRUE(std::is_sorted(
+      contacts.begin(), contacts.end(), [](const SceneContact& x, const SceneContact& y) {
+        return std::tie(x.object_a, x.object_b) < std::tie(y.object_a, y.object_b);
+      }));
 }
 
 // Two static objects cannot move each other, so the broad phase never pairs them: neither a
@@ -97,8 +96,8 @@ TEST(Scene, TwoStaticObjectsAreNeverReportedTouching) {
     for (const auto& c : contacts) {
       const std::uint32_t ball = 2;
       wall_with_shelf |= c.object_a != ball && c.object_b != ball;
-      ball_with_wall |= (c.object_a == ball) != (c.object_b == ball) &&
-                        (c.object_a == 0 || c.object_b == 0);
+      ball_with_wall |=
+          (c.object_a == ball) != (c.object_b == ball) && (c.object_a == 0 || c.object_b == 0);
     }
     EXPECT_FALSE(wall_with_shelf) << "level " << level;
     EXPECT_TRUE(ball_with_wall) << "level " << level;
@@ -205,8 +204,8 @@ TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
       }
     }
     if (chance(4)) {
-      scene->setPose(5, Eigen::Isometry3d(Eigen::Translation3d(
-                            Eigen::Vector3d(0.225, 0.0, 0.065) + offset())));
+      scene->setPose(5, Eigen::Isometry3d(
+                            Eigen::Translation3d(Eigen::Vector3d(0.225, 0.0, 0.065) + offset())));
     }
     const int max_level = scene->maxLevel();
     if (chance(5)) {
@@ -231,8 +230,8 @@ TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
     ASSERT_EQ(kept.size(), found.size()) << "cycle " << cycle;
     for (std::size_t k = 0; k < kept.size(); ++k) {
       ASSERT_TRUE(sameContact(kept[k], found[k]))
-          << "cycle " << cycle << ", contact " << k << " of objects " << kept[k].object_a
-          << " and " << kept[k].object_b;
+          << "cycle " << cycle << ", contact " << k << " of objects " << kept[k].object_a << " and "
+          << kept[k].object_b;
     }
     reused_pairs += scene->stats().object_pairs_reused;
     kept_contacts += kept.size();
@@ -243,12 +242,13 @@ TEST_P(ContactReuseTest, KeptContactsAreThoseAQueryFinds) {
   EXPECT_GT(detections_ahead, 20u);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    LevelsAndSeeds, ContactReuseTest,
-    ::testing::Values(ContactReuseCase{"Level0", 0, 1}, ContactReuseCase{"Level2", 2, 2},
-                      ContactReuseCase{"Level4", 4, 3}, ContactReuseCase{"Finest", -1, 4},
-                      ContactReuseCase{"FinestOtherSeed", -1, 5}),
-    [](const auto& info) { return std::string(info.param.name); });
+INSTANTIATE_TEST_SUITE_P(LevelsAndSeeds, ContactReuseTest,
+                         ::testing::Values(ContactReuseCase{"Level0", 0, 1},
+                                           ContactReuseCase{"Level2", 2, 2},
+                                           ContactReuseCase{"Level4", 4, 3},
+                                           ContactReuseCase{"Finest", -1, 4},
+                                           ContactReuseCase{"FinestOtherSeed", -1, 5}),
+                         [](const auto& info) { return std::string(info.param.name); });
 
 TEST(Scene, PairsOfUnchangedObjectsAreNotQueriedAgain) {
   std::vector<Points> tracked_rests;

@@ -56,10 +56,14 @@ struct StabilityCase {
 
 const char* setupName(Setup setup) {
   switch (setup) {
-    case Setup::kResting: return "resting";
-    case Setup::kStacked: return "stacked";
-    case Setup::kDropped: return "dropped";
-    case Setup::kThrown: return "thrown";
+    case Setup::kResting:
+      return "resting";
+    case Setup::kStacked:
+      return "stacked";
+    case Setup::kDropped:
+      return "dropped";
+    case Setup::kThrown:
+      return "thrown";
   }
   return "?";
 }
@@ -200,10 +204,9 @@ int finestLevelOf(const StabilityCase& c) {
     }
     return found->second;
   };
-  return std::max(
-      deepest(floor_levels, c.floor, [&c](Scene& scene) { addFloor(scene, c.floor); }),
-      deepest(boxes_levels, std::make_pair(c.setup, c.body.clusters),
-              [&c](Scene& scene) { addBoxes(scene, c); }));
+  return std::max(deepest(floor_levels, c.floor, [&c](Scene& scene) { addFloor(scene, c.floor); }),
+                  deepest(boxes_levels, std::make_pair(c.setup, c.body.clusters),
+                          [&c](Scene& scene) { addBoxes(scene, c); }));
 }
 
 /// The levels of the case's scene: 0 to its finest, and -1.

@@ -68,7 +68,8 @@ TEST_P(ExactRecoveryTest, TrackedTransformIsRecovered) {
   if (c.clusters == 1) {
     const auto& deformation = body.deformation(0);
     EXPECT_TRUE(deformation.transform.isApprox(c.transform, 1e-9))
-        << deformation.transform << "\nexpected\n" << c.transform;
+        << deformation.transform << "\nexpected\n"
+        << c.transform;
   }
 }
 
@@ -84,9 +85,9 @@ INSTANTIATE_TEST_SUITE_P(
         RecoveryCase{"rigid_one_cluster", DeformationMode::kRigid, 1, linearPart(kRotation)},
         RecoveryCase{"rigid_four_clusters", DeformationMode::kRigid, 4, linearPart(kRotation)},
         RecoveryCase{"linear_one_cluster", DeformationMode::kLinear, 1,
-                     linearPart(kRotation * shearStretch())},
+                     linearPart(kRotation* shearStretch())},
         RecoveryCase{"linear_four_clusters", DeformationMode::kLinear, 4,
-                     linearPart(kRotation * shearStretch())},
+                     linearPart(kRotation* shearStretch())},
         RecoveryCase{"quadratic_one_cluster", DeformationMode::kQuadratic, 1, quadraticMap()},
         RecoveryCase{"quadratic_four_clusters", DeformationMode::kQuadratic, 4, quadraticMap()},
         RecoveryCase{"quadratic_of_linear_map", DeformationMode::kQuadratic, 1,
@@ -186,8 +187,8 @@ INSTANTIATE_TEST_SUITE_P(
                       ConservationCase{"linear_clusters", DeformationMode::kLinear, 3, 0.0},
                       ConservationCase{"quadratic_clusters", DeformationMode::kQuadratic, 3, 0.0},
                       ConservationCase{"linear_damped", DeformationMode::kLinear, 1, 0.2},
-                      ConservationCase{"quadratic_clusters_damped", DeformationMode::kQuadratic,
-                                       4, 0.2}),
+                      ConservationCase{"quadratic_clusters_damped", DeformationMode::kQuadratic, 4,
+                                       0.2}),
     [](const auto& info) { return std::string(info.param.name); });
 
 TEST(Release, DeformedObjectReturnsToItsRestShape) {
@@ -291,9 +292,8 @@ Points plane(std::size_t n) {
 }
 
 Points scaled(const Points& points, double factor, const Eigen::Vector3d& offset) {
-  return mapped(points, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
-    return factor * p + offset;
-  });
+  return mapped(points,
+                [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return factor * p + offset; });
 }
 
 const PointMap kSquash = [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
@@ -326,8 +326,8 @@ std::vector<StabilityCase> stabilityCases() {
           std::string(toString(mode)) + (damped_volume_goals ? "_default_" : "_undamped_");
       const auto add = [&](const std::string& name, int clusters, double stiffness, double dt,
                            const Points& rest, const PointMap& start) {
-        cases.push_back({prefix + name, mode, clusters, stiffness, dt, rest, start,
-                         damped_volume_goals});
+        cases.push_back(
+            {prefix + name, mode, clusters, stiffness, dt, rest, start, damped_volume_goals});
       };
       add("stiffness_0", 2, 0.0, 0.01, cube, aroundCentroid(cube, kSquash));
       add("stiffness_0_5", 2, 0.5, 0.01, cube, aroundCentroid(cube, kSquash));
@@ -401,7 +401,8 @@ TEST_P(StabilityTest, StaysFiniteAndBounded) {
       ASSERT_TRUE(body.velocities()[i].allFinite()) << "step " << s << " point " << i;
       largest_speed = std::max(largest_speed, body.velocities()[i].norm());
     }
-    largest_radius = std::max(largest_radius, radiusAbout(body.positions(), centroid(body.positions())));
+    largest_radius =
+        std::max(largest_radius, radiusAbout(body.positions(), centroid(body.positions())));
     for (std::size_t k = 0; k < body.clusterCount(); ++k) {
       ASSERT_TRUE(body.deformation(k).transform.allFinite()) << "step " << s;
       ASSERT_TRUE(std::isfinite(body.deformation(k).goal_deviation_bound_m)) << "step " << s;
@@ -447,13 +448,17 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         BadConfigCase{"negative_mass", [](auto& c, auto&) { c.mass_kg = -2.5; }, "mass_kg = -2.5"},
         BadConfigCase{"zero_mass", [](auto& c, auto&) { c.mass_kg = 0.0; }, "mass_kg = 0"},
-        BadConfigCase{"nan_mass", [](auto& c, auto&) { c.mass_kg = std::nan(""); }, "mass_kg = nan"},
-        BadConfigCase{"stiffness_above_one", [](auto& c, auto&) { c.stiffness = 1.5; }, "stiffness = 1.5"},
-        BadConfigCase{"stiffness_negative", [](auto& c, auto&) { c.stiffness = -0.1; }, "stiffness = -0.1"},
+        BadConfigCase{"nan_mass", [](auto& c, auto&) { c.mass_kg = std::nan(""); },
+                      "mass_kg = nan"},
+        BadConfigCase{"stiffness_above_one", [](auto& c, auto&) { c.stiffness = 1.5; },
+                      "stiffness = 1.5"},
+        BadConfigCase{"stiffness_negative", [](auto& c, auto&) { c.stiffness = -0.1; },
+                      "stiffness = -0.1"},
         BadConfigCase{"beta_above_one", [](auto& c, auto&) { c.beta = 2.0; }, "beta = 2"},
         BadConfigCase{"damping_negative", [](auto& c, auto&) { c.damping = -1.0; }, "damping = -1"},
         BadConfigCase{"zero_clusters", [](auto& c, auto&) { c.clusters = 0; }, "clusters = 0"},
-        BadConfigCase{"more_clusters_than_points", [](auto& c, auto&) { c.clusters = 21; }, "clusters = 21"},
+        BadConfigCase{"more_clusters_than_points", [](auto& c, auto&) { c.clusters = 21; },
+                      "clusters = 21"},
         BadConfigCase{"negative_overlap", [](auto& c, auto&) { c.cluster_overlap_ratio = -0.2; },
                       "cluster_overlap_ratio = -0.2"},
         BadConfigCase{"mode_outside_the_enum",

@@ -58,15 +58,16 @@ TEST(DisplacePoints, RefitThatMovesUndisplacedPointsIsBounded) {
   const double delta = 1e-3;
   std::vector<PointDisplacement> kink;
   for (std::uint32_t i = 0; i < 400; ++i) {
-    kink.push_back({i, Eigen::Vector3d(0.0, 0.0, rest[i].x() > 0 ? delta : -delta),
-                    Eigen::Vector3d::Zero()});
+    kink.push_back(
+        {i, Eigen::Vector3d(0.0, 0.0, rest[i].x() > 0 ? delta : -delta), Eigen::Vector3d::Zero()});
   }
   body.displacePoints(kink);
   const auto& deformation = body.deformation(0);
   const Eigen::Vector3d outlier_goal =
       deformation.transform * quadraticFeatures(body.cluster(0).rest_offsets.back()) +
       deformation.translation;
-  ASSERT_GT((outlier_goal - rest.back()).norm(), 3 * delta) << "the scene must make the refit reach";
+  ASSERT_GT((outlier_goal - rest.back()).norm(), 3 * delta)
+      << "the scene must make the refit reach";
   EXPECT_LE(worstBoundExcess(body), 1e-12);
 }
 
@@ -81,7 +82,8 @@ TEST(DisplacePoints, IncrementalSumsMatchTheSumsOfTheMovedPoints) {
     ShapeMatchingBody body(sampleEllipsoid(600, {0.4, 0.3, 0.2}, 43), config);
     std::vector<Eigen::Vector3d> spin(body.pointCount());
     for (std::size_t i = 0; i < spin.size(); ++i) {
-      spin[i] = Eigen::Vector3d(0.5, -1.0, 2.0).cross(body.positions()[i]) + Eigen::Vector3d(0.3, 0, 0);
+      spin[i] =
+          Eigen::Vector3d(0.5, -1.0, 2.0).cross(body.positions()[i]) + Eigen::Vector3d(0.3, 0, 0);
     }
     body.setVelocities(spin);
     for (int s = 0; s < 5; ++s) body.step(0.01, Eigen::Vector3d(0, 0, -9.81));
@@ -103,7 +105,8 @@ TEST(DisplacePoints, IncrementalSumsMatchTheSumsOfTheMovedPoints) {
     fresh.setPositions(body.positions());
     fresh.setVelocities(body.velocities());
     for (std::size_t k = 0; k < body.clusterCount(); ++k) {
-      EXPECT_LT((fresh.deformation(k).center_of_mass - body.deformation(k).center_of_mass).norm(), 1e-12)
+      EXPECT_LT((fresh.deformation(k).center_of_mass - body.deformation(k).center_of_mass).norm(),
+                1e-12)
           << toString(mode) << " cluster " << k;
       EXPECT_LT((fresh.deformation(k).transform - body.deformation(k).transform).norm(), 1e-9)
           << toString(mode) << " cluster " << k;
@@ -226,7 +229,8 @@ TEST(MoveRigidly, EveryPointTakesTheSameOffsetAndVelocityChange) {
     ShapeMatchingBody body(sampleBox(c.points, {0.3, 0.2, 0.1}, 11),
                            configFor(DeformationMode::kLinear, 1));
     Points velocities;
-    for (const auto& p : body.positions()) velocities.push_back(Eigen::Vector3d(0.5, -1.0, 2.0).cross(p));
+    for (const auto& p : body.positions())
+      velocities.push_back(Eigen::Vector3d(0.5, -1.0, 2.0).cross(p));
     body.setVelocities(velocities);
     const Points positions = body.positions();
     body.moveRigidly(c.offset, c.change);
@@ -326,8 +330,9 @@ TEST_P(CenterOfMassTest, IsTheMeanOfThePointsAfterEveryKindOfMove) {
   const CenterOfMassCase& c = GetParam();
   ShapeMatchingConfig config = configFor(c.mode, 4);
   config.damping = 0.1;
-  const Points rest = mapped(sampleEllipsoid(400, {0.3, 0.2, 0.1}, 61),
-                             [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return c.origin + p; });
+  const Points rest =
+      mapped(sampleEllipsoid(400, {0.3, 0.2, 0.1}, 61),
+             [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return c.origin + p; });
   ShapeMatchingBody body(rest, config);
   const double tolerance = 1e-12 * (1.0 + c.origin.norm());
   const auto expectMean = [&](const std::string& after) {
@@ -363,12 +368,12 @@ TEST_P(CenterOfMassTest, IsTheMeanOfThePointsAfterEveryKindOfMove) {
 
 INSTANTIATE_TEST_SUITE_P(
     ModesNearAndFarFromTheOrigin, CenterOfMassTest,
-    ::testing::Values(
-        CenterOfMassCase{"Rigid", DeformationMode::kRigid, Eigen::Vector3d::Zero()},
-        CenterOfMassCase{"Linear", DeformationMode::kLinear, Eigen::Vector3d::Zero()},
-        CenterOfMassCase{"Quadratic", DeformationMode::kQuadratic, Eigen::Vector3d::Zero()},
-        CenterOfMassCase{"QuadraticFarOut", DeformationMode::kQuadratic,
-                         Eigen::Vector3d(1e5, -2e4, 3e3)}),
+    ::testing::Values(CenterOfMassCase{"Rigid", DeformationMode::kRigid, Eigen::Vector3d::Zero()},
+                      CenterOfMassCase{"Linear", DeformationMode::kLinear, Eigen::Vector3d::Zero()},
+                      CenterOfMassCase{"Quadratic", DeformationMode::kQuadratic,
+                                       Eigen::Vector3d::Zero()},
+                      CenterOfMassCase{"QuadraticFarOut", DeformationMode::kQuadratic,
+                                       Eigen::Vector3d(1e5, -2e4, 3e3)}),
     [](const auto& info) { return info.param.name; });
 
 TEST(SetVelocities, SpinIsKeptByTheDampingAndMomentumConserved) {
@@ -385,8 +390,8 @@ TEST(SetVelocities, SpinIsKeptByTheDampingAndMomentumConserved) {
   // A rigid spin is no deformation: heavy damping must leave it (and its energy) alone.
   Eigen::Vector3d angular = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < body.pointCount(); ++i) {
-    angular += body.pointMassKg() * (body.positions()[i] - centroid(body.positions()))
-                                        .cross(body.velocities()[i]);
+    angular += body.pointMassKg() *
+               (body.positions()[i] - centroid(body.positions())).cross(body.velocities()[i]);
   }
   Eigen::Vector3d initial = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < rest.size(); ++i) {

@@ -46,15 +46,22 @@ struct MotionCase {
 TEST(Track, StopsThePointsWhateverMovedThemSinceTheLastRegistration) {
   const MotionCase cases[] = {
       {"step", [](ShapeMatchingBody& b) { b.step(0.01, Eigen::Vector3d(0, 0, -9.81)); }},
-      {"move_rigidly", [](ShapeMatchingBody& b) { b.moveRigidly({0.01, 0, 0}, {0.5, 0, 0}); }},
+      {"move_rigidly",
+       [](ShapeMatchingBody& b) {
+         b.moveRigidly({0.01, 0, 0}, {0.5, 0, 0});
+       }},
       {"turn",
        [](ShapeMatchingBody& b) {
          b.moveRigidly({0, 0, 0}, {0, 0, 0}, {0, 0, 2.0}, Eigen::Vector3d::Zero());
        }},
       {"displace_points",
-       [](ShapeMatchingBody& b) { b.displacePoints({{3, {0.001, 0, 0}, {0.2, 0, 0}}}); }},
+       [](ShapeMatchingBody& b) {
+         b.displacePoints({{3, {0.001, 0, 0}, {0.2, 0, 0}}});
+       }},
       {"set_velocities",
-       [](ShapeMatchingBody& b) { b.setVelocities(Points(b.positions().size(), {0, 0.3, 0})); }},
+       [](ShapeMatchingBody& b) {
+         b.setVelocities(Points(b.positions().size(), {0, 0.3, 0}));
+       }},
   };
   const Points rest = sampleBox(120, {0.3, 0.2, 0.1}, 21);
   for (const MotionCase& c : cases) {
@@ -86,8 +93,8 @@ TEST(Track, SwappingInACloudGivesTheSameBitsAsCopyingIt) {
       const Points previous = swapped.positions();
       const std::size_t unobserved = copied.track(sent);
       ASSERT_EQ(swapped.trackSwapping(cloud), unobserved);
-      const std::string when = std::string(holes ? "with holes" : "whole") + ", frame " +
-                               std::to_string(frame);
+      const std::string when =
+          std::string(holes ? "with holes" : "whole") + ", frame " + std::to_string(frame);
       ASSERT_EQ(swapped.positions(), copied.positions()) << when;
       for (std::size_t k = 0; k < copied.clusterCount(); ++k) {
         ASSERT_EQ(swapped.deformation(k).transform, copied.deformation(k).transform) << when;
@@ -143,7 +150,8 @@ TEST(Track, ACopySharesTheRestShapeAndTracksOnItsOwn) {
 TEST(Track, ATrackedStateOfAnotherSizeThrowsAndLeavesBothAlone) {
   const Points rest = sampleBox(50, {0.3, 0.3, 0.3}, 15);
   ShapeMatchingBody body(rest, configFor(DeformationMode::kLinear, 2));
-  ShapeMatchingBody other(sampleBox(60, {0.3, 0.3, 0.3}, 16), configFor(DeformationMode::kLinear, 2));
+  ShapeMatchingBody other(sampleBox(60, {0.3, 0.3, 0.3}, 16),
+                          configFor(DeformationMode::kLinear, 2));
   Points positions = other.positions();
   TrackedState state;
   state.deformations = {other.deformation(0), other.deformation(1)};
@@ -203,9 +211,11 @@ void expectSameState(const ShapeMatchingBody& body, const ShapeMatchingBody& fre
   for (std::size_t k = 0; k < body.clusterCount(); ++k) {
     const ClusterDeformation& a = body.deformation(k);
     const ClusterDeformation& b = fresh.deformation(k);
-    EXPECT_LE((a.center_of_mass - b.center_of_mass).norm(), tolerance_m) << when << ", cluster " << k;
+    EXPECT_LE((a.center_of_mass - b.center_of_mass).norm(), tolerance_m)
+        << when << ", cluster " << k;
     EXPECT_LE((a.translation - b.translation).norm(), tolerance_m) << when << ", cluster " << k;
-    EXPECT_LE((a.transform - b.transform).norm() * size_m, tolerance_m) << when << ", cluster " << k;
+    EXPECT_LE((a.transform - b.transform).norm() * size_m, tolerance_m)
+        << when << ", cluster " << k;
     EXPECT_LE((a.rotation.toRotationMatrix() - b.rotation.toRotationMatrix()).norm() * size_m,
               tolerance_m)
         << when << ", cluster " << k;
@@ -217,7 +227,8 @@ void expectSameState(const ShapeMatchingBody& body, const ShapeMatchingBody& fre
 
 /// The rest shape seen turned, bent a little and moved, as a tracked object is.
 Points observedPose(const Points& rest, double shift_m) {
-  const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized()).matrix();
   return mapped(rest, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
     return turn * Eigen::Vector3d(p.x(), p.y() + 0.2 * p.x() * p.x(), p.z()) +
            Eigen::Vector3d(1.5 + shift_m, -0.4, 0.8);

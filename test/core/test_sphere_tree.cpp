@@ -34,7 +34,8 @@ TEST(SphereTreeStructure, BalancedWrappedAndOneBranchPerCluster) {
         EXPECT_EQ(root.cluster, -1);
         EXPECT_EQ(root.child_count, static_cast<std::uint32_t>(clusters));
       }
-      std::vector<std::vector<int>> leaves_holding(clusters, std::vector<int>(body.pointCount(), 0));
+      std::vector<std::vector<int>> leaves_holding(clusters,
+                                                   std::vector<int>(body.pointCount(), 0));
       for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
         const auto& node = tree.node(i);
         if (node.isLeaf()) {
@@ -250,9 +251,11 @@ std::vector<EnclosureCase> enclosureCases() {
       cases.push_back({m + "_" + name, mode, clusters, std::move(deform)});
     };
     add("soft_simulated", 3, [](ShapeMatchingBody& body) {
-      body.setPositions(mapped(body.restPositions(), [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
-        return Eigen::Vector3d(1.4 * p.x() + 0.3 * p.y() * p.y(), 0.7 * p.y(), p.z() + p.x() * p.z());
-      }));
+      body.setPositions(
+          mapped(body.restPositions(), [](const Eigen::Vector3d& p) -> Eigen::Vector3d {
+            return Eigen::Vector3d(1.4 * p.x() + 0.3 * p.y() * p.y(), 0.7 * p.y(),
+                                   p.z() + p.x() * p.z());
+          }));
       for (int s = 0; s < 25; ++s) body.step(0.02, Eigen::Vector3d(0, 0, -9.81));
     });
     add("zero_stiffness_falling", 2, [](ShapeMatchingBody& body) {
@@ -266,9 +269,11 @@ std::vector<EnclosureCase> enclosureCases() {
     add("tracked_noisy", 3, [](ShapeMatchingBody& body) {
       std::mt19937_64 engine(5);
       std::normal_distribution<double> noise(0.0, 0.02);
-      const Eigen::Matrix3d r = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 0).normalized()).matrix();
+      const Eigen::Matrix3d r =
+          Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 0).normalized()).matrix();
       Points p = mapped(body.restPositions(), [&](const Eigen::Vector3d& x) -> Eigen::Vector3d {
-        return r * Eigen::Vector3d(x.x(), x.y() + 0.5 * x.x() * x.x(), x.z()) + Eigen::Vector3d(3, 0, 1);
+        return r * Eigen::Vector3d(x.x(), x.y() + 0.5 * x.x() * x.x(), x.z()) +
+               Eigen::Vector3d(3, 0, 1);
       });
       for (auto& x : p) x += Eigen::Vector3d(noise(engine), noise(engine), noise(engine));
       body.track(p);
@@ -304,9 +309,9 @@ std::vector<EnclosureCase> enclosureCases() {
     // another for those above: the shape drifts from the fit by rounding alone.
     add("moved_rigidly_across_2_16", 2, [](ShapeMatchingBody& body) {
       const Eigen::Vector3d across(65536.0, 0, 0);
-      body.setPositions(mapped(body.restPositions(), [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
-        return p + across;
-      }));
+      body.setPositions(
+          mapped(body.restPositions(),
+                 [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return p + across; }));
       const Eigen::Vector3d offset(0.6 * std::ldexp(1.0, 16 - 52), 0, 0);
       for (int m = 0; m < 30000; ++m) body.moveRigidly(offset, Eigen::Vector3d::Zero());
     });
@@ -332,7 +337,8 @@ TEST_P(EnclosureTest, EveryPointInsideEveryNodeThatHoldsIt) {
     const Sphere& s = tree.sphere(i);
     ASSERT_TRUE(s.center.allFinite() && std::isfinite(s.radius)) << "node " << i;
     const auto& node = tree.node(i);
-    for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+    for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count;
+         ++slot) {
       const Eigen::Vector3d& x = positions[tree.pointIndices()[slot]];
       ASSERT_LE((x - s.center).norm(), s.radius)
           << "node " << i << " level " << node.level << " point " << tree.pointIndices()[slot];
@@ -359,16 +365,17 @@ TEST(EnclosureRandomised, ManySeedsEveryMode) {
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 9; ++c) warp(r, c) = (r == c ? 1.0 : 0.0) + 0.4 * (unit(engine) - 0.5);
     }
-    body.setPositions(mapped(body.restPositions(), [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
-      return warp * quadraticFeatures(p);
-    }));
+    body.setPositions(mapped(
+        body.restPositions(),
+        [&](const Eigen::Vector3d& p) -> Eigen::Vector3d { return warp * quadraticFeatures(p); }));
     for (int step = 0; step < 10; ++step) {
       body.step(0.01 + 0.09 * unit(engine), Eigen::Vector3d(0, 0, -9.81));
       tree.beginCycle();
       for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
         const Sphere& s = tree.sphere(i);
         const auto& node = tree.node(i);
-        for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+        for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count;
+             ++slot) {
           ASSERT_LE((body.positions()[tree.pointIndices()[slot]] - s.center).norm(), s.radius)
               << "seed " << seed << " step " << step << " node " << i;
         }
@@ -409,7 +416,8 @@ class AbsurdSpheresTest : public ::testing::TestWithParam<AbsurdSpheresCase> {};
 TEST_P(AbsurdSpheresTest, TheNextValidInputGivesAFreshBodysSpheres) {
   const auto& c = GetParam();
   const Points rest = sampleEllipsoid(1000, {0.4, 0.25, 0.15}, 29);
-  const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.6, Eigen::Vector3d(2, 1, 0).normalized()).matrix();
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(0.6, Eigen::Vector3d(2, 1, 0).normalized()).matrix();
   const Points good = mapped(rest, [&](const Eigen::Vector3d& p) -> Eigen::Vector3d {
     return turn * Eigen::Vector3d(p.x(), p.y() + p.x() * p.x(), p.z()) + Eigen::Vector3d(2, 1, 0.5);
   });
@@ -441,7 +449,8 @@ TEST_P(AbsurdSpheresTest, TheNextValidInputGivesAFreshBodysSpheres) {
       EXPECT_EQ(s.center, fresh_tree.sphere(i).center) << "node " << i;
       EXPECT_EQ(s.radius, fresh_tree.sphere(i).radius) << "node " << i;
       const auto& node = tree.node(i);
-      for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count; ++slot) {
+      for (std::uint32_t slot = node.first_point; slot < node.first_point + node.point_count;
+           ++slot) {
         ASSERT_LE((body.positions()[tree.pointIndices()[slot]] - s.center).norm(), s.radius)
             << "node " << i << " point " << tree.pointIndices()[slot];
       }
@@ -496,7 +505,8 @@ TEST(LazyUpdate, SmallNodeMeasuredWithItsLeavesGivesEachItsOwnSphere) {
         const SphereNode& leaf_node = together.node(leaf);
         const auto columns = Eigen::seqN(leaf_node.first_point, leaf_node.point_count);
         EXPECT_EQ(together.leafPositions()(Eigen::all, columns),
-                  one_by_one.leafPositions()(Eigen::all, columns)) << "leaf " << leaf;
+                  one_by_one.leafPositions()(Eigen::all, columns))
+            << "leaf " << leaf;
       }
       // Asked again, nothing is measured twice.
       together.current(i, kLeafLimit);

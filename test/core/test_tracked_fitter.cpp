@@ -84,7 +84,8 @@ TEST_P(FittedCloudTest, GivesTheStatesObserveGives) {
     buffers.insert({read.data(), fitted->body(f).positions().data()});
     EXPECT_EQ(fitted->body(f).positions(), observed->body(o).positions());
     for (std::size_t c = 0; c < observed->body(o).clusterCount(); ++c) {
-      EXPECT_EQ(fitted->body(f).deformation(c).transform, observed->body(o).deformation(c).transform);
+      EXPECT_EQ(fitted->body(f).deformation(c).transform,
+                observed->body(o).deformation(c).transform);
       EXPECT_EQ(fitted->body(f).deformation(c).goal_deviation_bound_m,
                 observed->body(o).deformation(c).goal_deviation_bound_m);
     }

@@ -8,8 +8,8 @@
 #include <limits>
 #include <string>
 
-#include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/ros/contact_service.h"
+#include "deformable_collision/scenes/demo_scenes.h"
 
 namespace {
 
@@ -57,7 +57,8 @@ std::string objectName(FuzzedDataProvider& input, const Fixture& f) {
     case 1:
       return input.ConsumeRandomLengthString(16);
     default:
-      return std::string(f.objects[input.ConsumeIntegralInRange<std::size_t>(0, f.objects.size() - 1)].name);
+      return std::string(
+          f.objects[input.ConsumeIntegralInRange<std::size_t>(0, f.objects.size() - 1)].name);
   }
 }
 
@@ -126,8 +127,8 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
           : namedLevel(*f.scene, request.level);
   GetContacts::Response response;
   answerGetContacts(*f.scene, f.scene->detectionCosts(), f.objects, request, f.scratch, response);
-  const bool valid = known(f, request.object_a) && known(f, request.object_b) && budget_valid &&
-                     level >= 0;
+  const bool valid =
+      known(f, request.object_a) && known(f, request.object_b) && budget_valid && level >= 0;
   check(response.success == valid, "get_contacts accepted wrongly");
   check(f.scene->level() == running, "get_contacts changed the running level");
   check(!response.message.empty(), "get_contacts said nothing");
@@ -135,8 +136,7 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
     check(response.contacts.contacts.empty(), "a refused query returned contacts");
     return;
   }
-  check(response.level == level && response.contacts.level == level,
-        "contacts of another level");
+  check(response.level == level && response.contacts.level == level, "contacts of another level");
   for (const Contact& contact : response.contacts.contacts) {
     check(request.object_a.empty() || contact.object_a == request.object_a ||
               contact.object_b == request.object_a,
@@ -145,9 +145,9 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
               contact.object_b == request.object_b,
           "a contact without object_b");
     check(contact.level <= level, "a contact below the level asked for");
-    const double length = std::sqrt(contact.normal.x * contact.normal.x +
-                                    contact.normal.y * contact.normal.y +
-                                    contact.normal.z * contact.normal.z);
+    const double length =
+        std::sqrt(contact.normal.x * contact.normal.x + contact.normal.y * contact.normal.y +
+                  contact.normal.z * contact.normal.z);
     check(std::abs(length - 1.0) < 1e-9, "a normal that is not unit length");
     check(std::isfinite(contact.depth) && std::isfinite(contact.position.x) &&
               std::isfinite(contact.position.y) && std::isfinite(contact.position.z),

@@ -14,26 +14,37 @@
 
 #include <ros/names.h>
 
-#include "deformable_collision/scenes/shapes.h"
 #include "deformable_collision/ros/node_config.h"
+#include "deformable_collision/scenes/shapes.h"
 
 namespace {
 
 using XmlRpc::XmlRpcValue;
 
 // dt and gravity are the deprecated names of dt_s and gravity_mps2.
-const char* const kTopKeys[] = {"fixed_frame", "rate_hz", "max_points_per_object", "dt_s",
-                                "gravity_mps2", "dt", "gravity", "level",
-                                "contact_distance_m", "friction", "tree", "markers", "objects",
-                                "rate"};
-const char* const kObjectKeys[] = {"name", "topic", "follow_frame", "dynamic", "on_cloud",
-                                   "mode", "clusters", "stiffness", "beta", "damping",
-                                   "mass_kg", "preserve_volume", "cluster_overlap_ratio",
+const char* const kTopKeys[] = {
+    "fixed_frame", "rate_hz", "max_points_per_object", "dt_s",     "gravity_mps2", "dt",
+    "gravity",     "level",   "contact_distance_m",    "friction", "tree",         "markers",
+    "objects",     "rate"};
+const char* const kObjectKeys[] = {"name",
+                                   "topic",
+                                   "follow_frame",
+                                   "dynamic",
+                                   "on_cloud",
+                                   "mode",
+                                   "clusters",
+                                   "stiffness",
+                                   "beta",
+                                   "damping",
+                                   "mass_kg",
+                                   "preserve_volume",
+                                   "cluster_overlap_ratio",
                                    "mass"};
 const char* const kTreeKeys[] = {"leaf_size", "branching", "exact_radius_points", "depth"};
-const char* const kStrings[] = {"", "a", "ball", "floor", "x y", "/abs", "~private", "a/b",
-                                "a//b", "1abc", "track", "reset", "ignore", "rigid", "linear",
-                                "quadratic", "world", "jaw_link", "\xc3\xa4"};
+const char* const kStrings[] = {"",          "a",        "ball",     "floor",   "x y",
+                                "/abs",      "~private", "a/b",      "a//b",    "1abc",
+                                "track",     "reset",    "ignore",   "rigid",   "linear",
+                                "quadratic", "world",    "jaw_link", "\xc3\xa4"};
 
 template <std::size_t N>
 const char* pick(FuzzedDataProvider& input, const char* const (&keys)[N]) {
@@ -43,13 +54,26 @@ const char* pick(FuzzedDataProvider& input, const char* const (&keys)[N]) {
 XmlRpcValue scalar(FuzzedDataProvider& input) {
   switch (input.ConsumeIntegralInRange(0, 4)) {
     case 0: {
-      const int edges[] = {0, 1, -1, 2, 4096, 4097, std::numeric_limits<int>::max(),
+      const int edges[] = {0,
+                           1,
+                           -1,
+                           2,
+                           4096,
+                           4097,
+                           std::numeric_limits<int>::max(),
                            std::numeric_limits<int>::min()};
       return input.ConsumeBool() ? XmlRpcValue(edges[input.ConsumeIntegralInRange(0, 7)])
                                  : XmlRpcValue(input.ConsumeIntegral<int>());
     }
     case 1: {
-      const double edges[] = {0.0, -0.0, 1.0, 1e-300, 1e300, -1.0, 0.1, 0.10000000000000001,
+      const double edges[] = {0.0,
+                              -0.0,
+                              1.0,
+                              1e-300,
+                              1e300,
+                              -1.0,
+                              0.1,
+                              0.10000000000000001,
                               std::numeric_limits<double>::quiet_NaN(),
                               std::numeric_limits<double>::infinity(),
                               -std::numeric_limits<double>::infinity()};
@@ -77,7 +101,8 @@ XmlRpcValue anyValue(FuzzedDataProvider& input, int depth) {
   if (kind == 6) {
     XmlRpcValue dictionary;
     const int size = input.ConsumeIntegralInRange(0, 2);
-    for (int i = 0; i < size; ++i) dictionary[pick(input, kObjectKeys)] = anyValue(input, depth - 1);
+    for (int i = 0; i < size; ++i)
+      dictionary[pick(input, kObjectKeys)] = anyValue(input, depth - 1);
     return dictionary;
   }
   return scalar(input);
@@ -188,7 +213,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t siz
         break;
       case 1:
       case 2: {
-        if (params["objects"].getType() != XmlRpcValue::TypeArray || params["objects"].size() == 0) break;
+        if (params["objects"].getType() != XmlRpcValue::TypeArray || params["objects"].size() == 0)
+          break;
         const int i = input.ConsumeIntegralInRange(0, params["objects"].size() - 1);
         if (params["objects"][i].getType() != XmlRpcValue::TypeStruct) break;
         edit(input, params["objects"][i], pick(input, kObjectKeys));

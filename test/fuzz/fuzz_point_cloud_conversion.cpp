@@ -47,13 +47,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t siz
     field.count = input.ConsumeIntegralInRange<std::uint32_t>(0, 2);
     cloud.fields.push_back(field);
   }
-  const NonFinitePoints policy = input.ConsumeBool() ? NonFinitePoints::kDrop : NonFinitePoints::kKeepAsNaN;
+  const NonFinitePoints policy =
+      input.ConsumeBool() ? NonFinitePoints::kDrop : NonFinitePoints::kKeepAsNaN;
   const std::size_t max_points = input.ConsumeIntegralInRange<std::size_t>(1, 1u << 20);
   cloud.data = input.ConsumeRemainingBytes<std::uint8_t>();
 
   const Eigen::Vector3d sentinel(1.0, 2.0, 3.0);
   std::vector<Eigen::Vector3d> points{sentinel};
-  const CloudReadResult result = deformable_collision::readCloudPoints(cloud, policy, max_points, points);
+  const CloudReadResult result =
+      deformable_collision::readCloudPoints(cloud, policy, max_points, points);
   const std::uint64_t count = static_cast<std::uint64_t>(cloud.width) * cloud.height;
   if (!result.ok()) {
     check(points.size() == 1 && points[0] == sentinel, "a refused cloud changed the points");

@@ -34,9 +34,10 @@ class FaultTestFixture : public ::testing::Test {
   using PointCloud2 = sensor_msgs::PointCloud2;
 
   void SetUp() override {
-    stats_subscriber_ = handle_.subscribe<Stats>(
-        kNode + "/stats", 10,
-        boost::function<void(const Stats::ConstPtr&)>([this](const Stats::ConstPtr& m) { stats_ = m; }));
+    stats_subscriber_ =
+        handle_.subscribe<Stats>(kNode + "/stats", 10,
+                                 boost::function<void(const Stats::ConstPtr&)>(
+                                     [this](const Stats::ConstPtr& m) { stats_ = m; }));
     ASSERT_TRUE(waitFor([this] { return stats_ != nullptr; })) << "no ~stats from the node";
     ASSERT_TRUE(ros::service::waitForService(kNode + "/get_contacts", ros::Duration(kTimeoutS)));
   }

@@ -216,7 +216,8 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
     Points moved = shape;
     std::optional<TrackedFitter> fitter;
     for (int sequence = 1; sequence <= kClouds; ++sequence) {
-      for (std::size_t i = 0; i < shape.size(); ++i) moved[i] = shape[i] + Eigen::Vector3d(1e-4 * sequence, 0, 0);
+      for (std::size_t i = 0; i < shape.size(); ++i)
+        moved[i] = shape[i] + Eigen::Vector3d(1e-4 * sequence, 0, 0);
       writeCloudPoints(moved, message, sensor_msgs::PointField::FLOAT64);
       if (!readCloudPoints(message, NonFinitePoints::kKeepAsNaN, 1000, read.points).ok()) {
         ADD_FAILURE() << "cloud " << sequence << " not read";
@@ -233,8 +234,9 @@ TEST(CloudHandoff, AReaderAndACycleRunConcurrently) {
       read.stamp = ros::Time(sequence);
       handoff.put(0, read);
       if (sequence % kCloudsPerShape == 0) {
-        shape_read.points = sampleBox(50 + sequence / kCloudsPerShape, Eigen::Vector3d(0.1, 0.1, 0.1),
-                                      static_cast<std::uint32_t>(sequence));
+        shape_read.points =
+            sampleBox(50 + sequence / kCloudsPerShape, Eigen::Vector3d(0.1, 0.1, 0.1),
+                      static_cast<std::uint32_t>(sequence));
         for (auto& p : shape_read.points) p.z() += 0.5;
         shape_read.prepared = scene.prepareObject(reshaped, shape_read.points);
         shape_read.stamp = ros::Time(sequence);
@@ -330,10 +332,12 @@ TEST(CloudHandoff, AReplacedCloudPassesItsPreparedObjectToANewerOneWithout) {
 
   // A newer cloud with an object of its own keeps it; the older one comes back with its own.
   ReadCloud reset_first = numbered(4, 3.0);
-  reset_first.prepared = scene.prepareObject(tracked, sampleBox(60, Eigen::Vector3d(0.1, 0.1, 0.1), 2));
+  reset_first.prepared =
+      scene.prepareObject(tracked, sampleBox(60, Eigen::Vector3d(0.1, 0.1, 0.1), 2));
   handoff.put(0, reset_first);
   ReadCloud reset_second = numbered(4, 4.0);
-  reset_second.prepared = scene.prepareObject(tracked, sampleBox(70, Eigen::Vector3d(0.1, 0.1, 0.1), 3));
+  reset_second.prepared =
+      scene.prepareObject(tracked, sampleBox(70, Eigen::Vector3d(0.1, 0.1, 0.1), 3));
   handoff.put(0, reset_second);
   handoff.takeForCycle(taken, objects);
   EXPECT_EQ(taken[0].prepared.trackedFitter().pointCount(), 70u);

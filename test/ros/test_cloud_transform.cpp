@@ -35,35 +35,40 @@ class CloudTransformTest : public ::testing::Test {
 };
 
 TEST_F(CloudTransformTest, FindsTheTransformAtTheStamp) {
-  const CloudTransformLookup lookup = lookUpCloudTransform(buffer_, "world", "camera", ros::Time(10.5));
+  const CloudTransformLookup lookup =
+      lookUpCloudTransform(buffer_, "world", "camera", ros::Time(10.5));
   ASSERT_EQ(lookup.status, CloudTransformStatus::kFound) << lookup.error;
   EXPECT_DOUBLE_EQ(lookup.transform.translation.z, 10.5);
 }
 
 TEST_F(CloudTransformTest, AStampAfterOrBeforeTheKnownPosesIsNotYet) {
   for (double t : {12.0, 9.0}) {
-    const CloudTransformLookup lookup = lookUpCloudTransform(buffer_, "world", "camera", ros::Time(t));
+    const CloudTransformLookup lookup =
+        lookUpCloudTransform(buffer_, "world", "camera", ros::Time(t));
     EXPECT_EQ(lookup.status, CloudTransformStatus::kNotYet) << t;
     EXPECT_FALSE(lookup.error.empty()) << t;
   }
 }
 
 TEST_F(CloudTransformTest, AKnownFrameNotJoinedToTheTargetIsNotYet) {
-  const CloudTransformLookup lookup = lookUpCloudTransform(buffer_, "world", "wrist", ros::Time(10.0));
+  const CloudTransformLookup lookup =
+      lookUpCloudTransform(buffer_, "world", "wrist", ros::Time(10.0));
   EXPECT_EQ(lookup.status, CloudTransformStatus::kNotYet);
   EXPECT_FALSE(lookup.error.empty());
 }
 
 TEST_F(CloudTransformTest, AFrameNoTransformNamesIsUnknown) {
   for (const char* frame : {"nowhere", "/camera"}) {
-    const CloudTransformLookup lookup = lookUpCloudTransform(buffer_, "world", frame, ros::Time(10.5));
+    const CloudTransformLookup lookup =
+        lookUpCloudTransform(buffer_, "world", frame, ros::Time(10.5));
     EXPECT_EQ(lookup.status, CloudTransformStatus::kUnknownFrame) << frame;
     EXPECT_FALSE(lookup.error.empty()) << frame;
   }
 }
 
 TEST_F(CloudTransformTest, AnUnknownTargetFrameIsNotYetForAKnownCloudFrame) {
-  const CloudTransformLookup lookup = lookUpCloudTransform(buffer_, "map", "camera", ros::Time(10.5));
+  const CloudTransformLookup lookup =
+      lookUpCloudTransform(buffer_, "map", "camera", ros::Time(10.5));
   EXPECT_EQ(lookup.status, CloudTransformStatus::kNotYet);
 }
 

@@ -47,8 +47,9 @@ TEST_F(CountedPublisherTest, CountsSubscribersOfThisProcessAsTheyComeAndGo) {
   std::vector<std::uint32_t> received;
   auto subscribe = [&] {
     return client_.subscribe<std_msgs::UInt32>(
-        "/counted/local", 10,
-        Received([&received](const std_msgs::UInt32::ConstPtr& m) { received.push_back(m->data); }));
+        "/counted/local", 10, Received([&received](const std_msgs::UInt32::ConstPtr& m) {
+          received.push_back(m->data);
+        }));
   };
   auto first = std::make_unique<ros::Subscriber>(subscribe());
   ASSERT_TRUE(waitForCount(publisher, 1));

@@ -76,23 +76,28 @@ class CycleOnCloudsTest : public ::testing::Test {
       inputs_[name] = handle_.advertise<PointCloud2>("/test/" + name, 100);
     }
     contacts_subscriber_ = handle_.subscribe<ContactArray>(
-        kNode + "/contacts", 1000, boost::function<void(const ContactArray::ConstPtr&)>(
-                                       [this](const ContactArray::ConstPtr& m) { contacts_.push_back(m); }));
-    stats_subscriber_ = handle_.subscribe<Stats>(
-        kNode + "/stats", 1000,
-        boost::function<void(const Stats::ConstPtr&)>([this](const Stats::ConstPtr& m) { stats_.push_back(m); }));
+        kNode + "/contacts", 1000,
+        boost::function<void(const ContactArray::ConstPtr&)>(
+            [this](const ContactArray::ConstPtr& m) { contacts_.push_back(m); }));
+    stats_subscriber_ =
+        handle_.subscribe<Stats>(kNode + "/stats", 1000,
+                                 boost::function<void(const Stats::ConstPtr&)>(
+                                     [this](const Stats::ConstPtr& m) { stats_.push_back(m); }));
     far_subscriber_ = handle_.subscribe<PointCloud2>(
-        kNode + "/deformed/far", 100, boost::function<void(const PointCloud2::ConstPtr&)>(
-                                          [this](const PointCloud2::ConstPtr& m) { far_.push_back(m); }));
+        kNode + "/deformed/far", 100,
+        boost::function<void(const PointCloud2::ConstPtr&)>(
+            [this](const PointCloud2::ConstPtr& m) { far_.push_back(m); }));
     probe_subscriber_ = handle_.subscribe<PointCloud2>(
-        kNode + "/deformed/probe", 100, boost::function<void(const PointCloud2::ConstPtr&)>(
-                                            [this](const PointCloud2::ConstPtr& m) { probe_.push_back(m); }));
+        kNode + "/deformed/probe", 100,
+        boost::function<void(const PointCloud2::ConstPtr&)>(
+            [this](const PointCloud2::ConstPtr& m) { probe_.push_back(m); }));
     ASSERT_TRUE(waitFor([this] {
       for (const auto& [name, publisher] : inputs_) {
         if (publisher.getNumSubscribers() == 0) return false;
       }
-      return contacts_subscriber_.getNumPublishers() > 0 && stats_subscriber_.getNumPublishers() > 0 &&
-             far_subscriber_.getNumPublishers() > 0 && probe_subscriber_.getNumPublishers() > 0;
+      return contacts_subscriber_.getNumPublishers() > 0 &&
+             stats_subscriber_.getNumPublishers() > 0 && far_subscriber_.getNumPublishers() > 0 &&
+             probe_subscriber_.getNumPublishers() > 0;
     })) << "the nodelet did not connect";
     // The floor's cloud comes on its own connection and may reach the node after the probe's:
     // until a cycle has taken it, it would wait and be counted in the first test's clouds.
@@ -115,7 +120,9 @@ class CycleOnCloudsTest : public ::testing::Test {
     return waitForContacts(stamp);
   }
 
-  ContactArray::ConstPtr waitForContacts(const ros::Time& stamp) { return waitForStamp(contacts_, stamp); }
+  ContactArray::ConstPtr waitForContacts(const ros::Time& stamp) {
+    return waitForStamp(contacts_, stamp);
+  }
   Stats::ConstPtr waitForStats(const ros::Time& stamp) { return waitForStamp(stats_, stamp); }
 
   ros::NodeHandle handle_;
@@ -244,8 +251,8 @@ TEST_F(CycleOnCloudsTest, ACloudThatComesWhileACycleWaitsIsAppliedAtOnce) {
     EXPECT_EQ(after->clouds_received - before->clouds_received, 2u);
     EXPECT_EQ(after->clouds_coalesced - before->clouds_coalesced, 1u) << "cloud 2";
   }
-  EXPECT_TRUE(fitted) << "no round of three clouds fitted in a cycle's wait of "
-                      << 1.0 / kRateHz << " s";
+  EXPECT_TRUE(fitted) << "no round of three clouds fitted in a cycle's wait of " << 1.0 / kRateHz
+                      << " s";
 }
 
 TEST_F(CycleOnCloudsTest, ACloudAppliedWhileACycleWaitsIsDetectedBeforeTheCycle) {

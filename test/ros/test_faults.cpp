@@ -1,10 +1,10 @@
 // Faults the nodelet must survive (rostest faults.test): late and missing tf, clouds in a
 // frame tf does not know among good ones, a publisher process killed and started again, a
-// tracked cloud of another size, one with points at 1e100 m, a cloud of 10 million points, and services hammered from
-// several clients at once. Each test meets its own object of faults_test.yaml and checks
-// the node's ~stats and outputs; every wait is on an event with a timeout. The manager
-// killed and respawned has its own rostest (manager_respawn.test), as a respawn would start
-// the other cases on a new node.
+// tracked cloud of another size, one with points at 1e100 m, a cloud of 10 million points, and
+// services hammered from several clients at once. Each test meets its own object of
+// faults_test.yaml and checks the node's ~stats and outputs; every wait is on an event with a
+// timeout. The manager killed and respawned has its own rostest (manager_respawn.test), as a
+// respawn would start the other cases on a new node.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
@@ -81,8 +81,9 @@ class FaultsTest : public FaultTestFixture {
  protected:
   void SetUp() override {
     log_subscriber_ = handle_.subscribe<rosgraph_msgs::Log>(
-        "/rosout", 100, boost::function<void(const rosgraph_msgs::Log::ConstPtr&)>(
-                            [this](const rosgraph_msgs::Log::ConstPtr& m) { log_.push_back(m); }));
+        "/rosout", 100,
+        boost::function<void(const rosgraph_msgs::Log::ConstPtr&)>(
+            [this](const rosgraph_msgs::Log::ConstPtr& m) { log_.push_back(m); }));
     FaultTestFixture::SetUp();
   }
 
@@ -103,7 +104,8 @@ class FaultsTest : public FaultTestFixture {
   }
 
   /// Poses of `frame`, 1 m above the world's origin, at each stamp.
-  static tf2_msgs::TFMessage posesOf(const std::string& frame, const std::vector<ros::Time>& stamps) {
+  static tf2_msgs::TFMessage posesOf(const std::string& frame,
+                                     const std::vector<ros::Time>& stamps) {
     tf2_msgs::TFMessage poses;
     for (const ros::Time& stamp : stamps) {
       geometry_msgs::TransformStamped pose;
@@ -146,9 +148,11 @@ TEST_F(FaultsTest, CloudsWaitInOrderForATransformThatComesLate) {
   ros::Publisher tf = tfPublisher();
   tf.publish(posesOf("late_sensor", {clouds.front().header.stamp - ros::Duration(0.1),
                                      clouds.back().header.stamp + ros::Duration(0.1)}));
-  ASSERT_TRUE(waitFor([&] { return hasShape("late"); }, 3 * kTfWaitS)) << "the clouds were not applied";
+  ASSERT_TRUE(waitFor([&] { return hasShape("late"); }, 3 * kTfWaitS))
+      << "the clouds were not applied";
   ASSERT_TRUE(waitFor([&] {
-    return deformed("late") && (meanOf(*deformed("late")) - Eigen::Vector3d(0.1, 0.0, 1.04)).norm() < 1e-4;
+    return deformed("late") &&
+           (meanOf(*deformed("late")) - Eigen::Vector3d(0.1, 0.0, 1.04)).norm() < 1e-4;
   })) << "the second cloud, placed by the pose at its stamp, is not the object";
   EXPECT_EQ(stats_->clouds_rejected, rejected) << "a waiting cloud was dropped";
 }
@@ -170,7 +174,8 @@ TEST_F(FaultsTest, ACloudWhoseSensorPoseNeverComesIsDroppedAfterTfWaitWithAWarni
     waitFor([&] { return hasShape("anchor"); }, 0.5);
   }
   ASSERT_TRUE(hasShape("anchor")) << "the node did not learn ghost_sensor";
-  ASSERT_TRUE(waitFor([&] { return stats_->clouds_received >= received_before_anchor + anchors_sent; }));
+  ASSERT_TRUE(
+      waitFor([&] { return stats_->clouds_received >= received_before_anchor + anchors_sent; }));
 
   // A cloud stamped after the newest pose: its pose at its stamp never comes.
   PointCloud2 lost = cloudOf(cubePoints(0.0), "ghost_sensor");
@@ -185,7 +190,8 @@ TEST_F(FaultsTest, ACloudWhoseSensorPoseNeverComesIsDroppedAfterTfWaitWithAWarni
   EXPECT_LT(waited_s, 3 * kTfWaitS);
   EXPECT_EQ(stats_->clouds_received, received + 1);
   EXPECT_EQ(stats_->clouds_rejected, rejected + 1);
-  EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::WARN, "/faults/ghost"); }, 5.0));
+  EXPECT_TRUE(
+      waitFor([&] { return problemLogged(rosgraph_msgs::Log::WARN, "/faults/ghost"); }, 5.0));
   EXPECT_FALSE(hasShape("ghost"));
 }
 
@@ -201,8 +207,8 @@ TEST_F(FaultsTest, CloudsInAFrameTfDoesNotKnowAreDroppedAtOnceAndBlockNoGoodClou
   ASSERT_TRUE(waitFor([&] { return wrong.getNumSubscribers() > 0; }));
   std::uint64_t wrong_sent = 0;
   const PointCloud2 wrong_cloud = cloudOf(cubePoints(0.5), "no_such_frame");
-  ros::WallTimer wrong_timer = wrong_handle.createWallTimer(
-      ros::WallDuration(0.3), [&](const ros::WallTimerEvent&) {
+  ros::WallTimer wrong_timer =
+      wrong_handle.createWallTimer(ros::WallDuration(0.3), [&](const ros::WallTimerEvent&) {
         wrong.publish(wrong_cloud);
         ++wrong_sent;
       });
@@ -215,18 +221,24 @@ TEST_F(FaultsTest, CloudsInAFrameTfDoesNotKnowAreDroppedAtOnceAndBlockNoGoodClou
     const double x = good_sent % 2 == 0 ? 0.3 : 0.32;
     mixed.publish(cloudOf(cubePoints(x), "world"));
     ++good_sent;
-    ASSERT_TRUE(waitFor([&] {
-      return deformed("mixed") && (meanOf(*deformed("mixed")) - Eigen::Vector3d(x, 0.0, 0.04)).norm() < 1e-4;
-    }, 0.5 * kTfWaitS)) << "good cloud " << good_sent << " waited behind a cloud in an unknown frame";
+    ASSERT_TRUE(waitFor(
+        [&] {
+          return deformed("mixed") &&
+                 (meanOf(*deformed("mixed")) - Eigen::Vector3d(x, 0.0, 0.04)).norm() < 1e-4;
+        },
+        0.5 * kTfWaitS))
+        << "good cloud " << good_sent << " waited behind a cloud in an unknown frame";
   }
   wrong_timer.stop();
   const std::uint64_t wrong_total = wrong_sent;
-  ASSERT_TRUE(waitFor([&] { return stats_->clouds_received >= received + good_sent + wrong_total; }));
+  ASSERT_TRUE(
+      waitFor([&] { return stats_->clouds_received >= received + good_sent + wrong_total; }));
   EXPECT_EQ(stats_->clouds_received, received + good_sent + wrong_total);
   ASSERT_TRUE(waitFor([&] { return stats_->clouds_rejected >= rejected + wrong_total; }));
   EXPECT_TRUE(cyclesPass(5));
   EXPECT_EQ(stats_->clouds_rejected, rejected + wrong_total) << "a good cloud was dropped";
-  EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/mixed"); }, 5.0));
+  EXPECT_TRUE(
+      waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/mixed"); }, 5.0));
 }
 
 TEST_F(FaultsTest, ATrackedCloudOfAnotherSizeIsRefusedAndTheNextGoodOneTaken) {
@@ -242,7 +254,8 @@ TEST_F(FaultsTest, ATrackedCloudOfAnotherSizeIsRefusedAndTheNextGoodOneTaken) {
   more.resize(more.size() + 8, Eigen::Vector3d(-0.2, 0.0, 0.2));
   counted.publish(cloudOf(more, "world"));
   ASSERT_TRUE(waitFor([&] { return stats_->clouds_rejected == rejected + 1; }));
-  EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/counted"); }, 5.0));
+  EXPECT_TRUE(
+      waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/counted"); }, 5.0));
 
   counted.publish(cloudOf(cubePoints(-0.1), "world"));
   EXPECT_TRUE(waitFor([&] {
@@ -271,7 +284,8 @@ TEST_F(FaultsTest, ATrackedCloudWithPointsBeyondMaxCoordinateIsRefusedAndTheNext
       << "a cloud with points at 1e100 m was taken";
   ASSERT_TRUE(cyclesPass(3));
   EXPECT_TRUE(waitFor([&] { return deformedAtX(0.4); })) << "the refused cloud moved the object";
-  EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/far"); }, 5.0));
+  EXPECT_TRUE(
+      waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/far"); }, 5.0));
 
   far.publish(doubleCloudOf(slab(0.45), "world"));
   EXPECT_TRUE(waitFor([&] { return deformedAtX(0.45); }))
@@ -289,7 +303,8 @@ TEST_F(FaultsTest, ACloudOfTenMillionPointsIsRefusedByMaxPointsPerObject) {
   big.publish(cloud);
   ASSERT_TRUE(waitFor([&] { return stats_->clouds_rejected > rejected; }, 60.0));
   EXPECT_EQ(stats_->clouds_rejected, rejected + 1);
-  EXPECT_TRUE(waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/big"); }, 5.0));
+  EXPECT_TRUE(
+      waitFor([&] { return problemLogged(rosgraph_msgs::Log::ERROR, "/faults/big"); }, 5.0));
   EXPECT_FALSE(hasShape("big"));
   EXPECT_TRUE(cyclesPass(5)) << "the node stopped cycling";
 }
@@ -297,9 +312,12 @@ TEST_F(FaultsTest, ACloudOfTenMillionPointsIsRefusedByMaxPointsPerObject) {
 TEST_F(FaultsTest, APublisherProcessKilledAndStartedAgainIsFollowedAgain) {
   const std::string publisher =
       (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "scene_publisher").string();
-  const std::vector<std::string> argv = {publisher, "__name:=fault_scene_publisher",
-                                         "__ns:=/fault_scene", "_scene:=three_objects",
-                                         "_points:=8000", "_rate_hz:=20"};
+  const std::vector<std::string> argv = {publisher,
+                                         "__name:=fault_scene_publisher",
+                                         "__ns:=/fault_scene",
+                                         "_scene:=three_objects",
+                                         "_points:=8000",
+                                         "_rate_hz:=20"};
   std::uint32_t rejected = stats_->clouds_rejected;
   {
     ChildProcess first(argv);
@@ -352,8 +370,8 @@ TEST_F(FaultsTest, ServicesAnswerEveryCallOfSeveralClientsInATightLoop) {
           ++transport_failures;
           continue;
         }
-        const bool get_valid = contacts.request.object_a == "counted" &&
-                               contacts.request.level <= max_level;
+        const bool get_valid =
+            contacts.request.object_a == "counted" && contacts.request.level <= max_level;
         if (contacts.response.success != get_valid || level.response.success != (i % 2 == 0)) {
           ++wrong_answers;
         }

@@ -43,7 +43,8 @@ struct DrawnSphere {
 };
 
 /// Spheres of each namespace, as a client decodes them: centre = point, radius = scale / 2.
-std::map<std::string, std::vector<DrawnSphere>> decode(const visualization_msgs::MarkerArray& array) {
+std::map<std::string, std::vector<DrawnSphere>> decode(
+    const visualization_msgs::MarkerArray& array) {
   std::map<std::string, std::vector<DrawnSphere>> spheres;
   for (const Marker& marker : array.markers) {
     if (marker.action != Marker::ADD) continue;

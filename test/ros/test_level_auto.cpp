@@ -33,12 +33,14 @@ Points boxPoints() { return grid(6, 6, 6, 0.02, {0.0, 0.0, 0.06}); }
 class LevelAutoTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    stats_subscriber_ = handle_.subscribe<Stats>(
-        kNode + "/stats", 10,
-        boost::function<void(const Stats::ConstPtr&)>([this](const Stats::ConstPtr& m) { stats_ = m; }));
+    stats_subscriber_ =
+        handle_.subscribe<Stats>(kNode + "/stats", 10,
+                                 boost::function<void(const Stats::ConstPtr&)>(
+                                     [this](const Stats::ConstPtr& m) { stats_ = m; }));
     contacts_subscriber_ = handle_.subscribe<ContactArray>(
-        kNode + "/contacts", 10, boost::function<void(const ContactArray::ConstPtr&)>(
-                                     [this](const ContactArray::ConstPtr& m) { contacts_ = m; }));
+        kNode + "/contacts", 10,
+        boost::function<void(const ContactArray::ConstPtr&)>(
+            [this](const ContactArray::ConstPtr& m) { contacts_ = m; }));
     for (const char* name : {"floor", "box"}) {
       inputs_[name] = handle_.advertise<PointCloud2>(std::string("/test/") + name, 1, true);
     }
@@ -46,7 +48,8 @@ class LevelAutoTest : public ::testing::Test {
       for (const auto& [name, publisher] : inputs_) {
         if (publisher.getNumSubscribers() == 0) return false;
       }
-      return stats_subscriber_.getNumPublishers() > 0 && contacts_subscriber_.getNumPublishers() > 0;
+      return stats_subscriber_.getNumPublishers() > 0 &&
+             contacts_subscriber_.getNumPublishers() > 0;
     })) << "the nodelet did not connect";
     inputs_["floor"].publish(cloudOf(floorPoints(), "world"));
     inputs_["box"].publish(cloudOf(boxPoints(), "world"));

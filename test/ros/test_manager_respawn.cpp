@@ -52,10 +52,13 @@ TEST_F(ManagerRespawnTest, TheManagerKilledIsRespawnedAndTheNodeComesBack) {
   const std::uint64_t cycles = stats_->cycles;
   ASSERT_EQ(kill(*manager, SIGKILL), 0);
 
-  ASSERT_TRUE(waitFor([&] {
-    const auto now = pidOfNode(kManager);
-    return now && *now != *manager;
-  }, 60.0)) << "the manager was not respawned";
+  ASSERT_TRUE(waitFor(
+      [&] {
+        const auto now = pidOfNode(kManager);
+        return now && *now != *manager;
+      },
+      60.0))
+      << "the manager was not respawned";
   ASSERT_TRUE(ros::service::waitForService(kNode + "/get_contacts", ros::Duration(kTimeoutS)));
   EXPECT_TRUE(waitFor([&] { return stats_->cycles < cycles && stats_->objects >= 1; }, 60.0))
       << "no new node, or it did not get the latched cloud";

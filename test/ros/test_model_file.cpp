@@ -72,7 +72,8 @@ std::string errorOf(const std::function<void()>& read) {
 std::string pcdHeader(const std::string& fields, int count, const std::string& data) {
   const std::string n = std::to_string(count);
   return "# .PCD v0.7\nVERSION 0.7\nFIELDS " + fields + "\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n" +
-         "WIDTH " + n + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n + "\nDATA " + data + "\n";
+         "WIDTH " + n + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n + "\nDATA " + data +
+         "\n";
 }
 
 TEST_F(ModelFileTest, PlyRoundTripKeepsOrderAndValues) {
@@ -92,7 +93,8 @@ TEST_F(ModelFileTest, WrittenPlyIsBinaryLittleEndianFloat32) {
   const std::size_t body = bytes.find(header_end) + header_end.size();
   ASSERT_EQ(bytes.size() - body, 12u);
   // 1.0f, -2.0f, 0.5f: sign and exponent in each value's last byte.
-  EXPECT_EQ(bytes.substr(body, 12), std::string("\x00\x00\x80\x3f\x00\x00\x00\xc0\x00\x00\x00\x3f", 12));
+  EXPECT_EQ(bytes.substr(body, 12),
+            std::string("\x00\x00\x80\x3f\x00\x00\x00\xc0\x00\x00\x00\x3f", 12));
 }
 
 TEST_F(ModelFileTest, AsciiPcdDropsNonFinitePointsInOrder) {
@@ -134,7 +136,8 @@ TEST_F(ModelFileTest, ErrorsNameThePathAndTheFault) {
   EXPECT_NE(unreadable.find("PCL could not read it as ply"), std::string::npos);
 
   const std::string no_xyz = writeText("abc.pcd", pcdHeader("a b c", 1, "ascii") + "1 2 3\n");
-  EXPECT_NE(errorOf([&] { readModelFile(no_xyz); }).find("field 'x' is missing"), std::string::npos);
+  EXPECT_NE(errorOf([&] { readModelFile(no_xyz); }).find("field 'x' is missing"),
+            std::string::npos);
 
   const std::string all_nan =
       writeText("nan.pcd", pcdHeader("x y z", 2, "ascii") + "nan nan nan\n1 nan 2\n");
@@ -153,8 +156,9 @@ TEST_F(ModelFileTest, WritingRefusesNonFinitePointsAndBadPaths) {
   const std::string file = path("nan.ply");
   EXPECT_NE(errorOf([&] { writeModelFile(file, {Eigen::Vector3d(0, NAN, 0)}); }).find("not finite"),
             std::string::npos);
-  EXPECT_NE(errorOf([&] { writeModelFile("/nonexistent_directory/m.ply", samplePoints()); })
-                .find("cannot be opened for writing"),
+  EXPECT_NE(errorOf([&] {
+              writeModelFile("/nonexistent_directory/m.ply", samplePoints());
+            }).find("cannot be opened for writing"),
             std::string::npos);
 }
 

@@ -325,8 +325,9 @@ INSTANTIATE_TEST_SUITE_P(
         RenamedKeyCase{"StepByItsName", "dt_s", "dt", true, false, 0.03, stepIs003, "", ""},
         RenamedKeyCase{"StepByItsOldName", "dt_s", "dt", false, true, 0.03, stepIs003,
                        "parameter dt is deprecated: rename it dt_s", ""},
-        RenamedKeyCase{"StepByBothNames", "dt_s", "dt", true, true, 0.03, stepIs003, "",
-                       "parameter dt is the deprecated name of dt_s, which is set too: keep only dt_s"},
+        RenamedKeyCase{
+            "StepByBothNames", "dt_s", "dt", true, true, 0.03, stepIs003, "",
+            "parameter dt is the deprecated name of dt_s, which is set too: keep only dt_s"},
         RenamedKeyCase{"GravityByItsName", "gravity_mps2", "gravity", true, false,
                        vector3(-1.62, 0.0, 0.0), gravityIsLunarX, "", ""},
         RenamedKeyCase{"GravityByItsOldName", "gravity_mps2", "gravity", false, true,
@@ -417,7 +418,8 @@ TEST(NodeConfig, RegisterBlockDefaultsAreTheCores) {
 }
 
 TEST(NodeConfig, OnCloudNamesRoundTrip) {
-  for (const auto value : {OnCloud::kTrack, OnCloud::kRegister, OnCloud::kReset, OnCloud::kIgnore}) {
+  for (const auto value :
+       {OnCloud::kTrack, OnCloud::kRegister, OnCloud::kReset, OnCloud::kIgnore}) {
     EXPECT_EQ(parseOnCloud(toString(value)), value);
   }
   EXPECT_FALSE(parseOnCloud("Track"));

@@ -63,22 +63,27 @@ class NodeletTest : public ::testing::Test {
 
     for (const auto& name : kObjects) {
       inputs_[name] = handle_.advertise<PointCloud2>("/test/" + name, 10, name != "probe");
-      deformed_subscribers_.push_back(handle_.subscribe<PointCloud2>(
-          kNode + "/deformed/" + name, 10,
-          boost::function<void(const PointCloud2::ConstPtr&)>(
-              [this, name](const PointCloud2::ConstPtr& cloud) { deformed_[name].push_back(cloud); })));
+      deformed_subscribers_.push_back(
+          handle_.subscribe<PointCloud2>(kNode + "/deformed/" + name, 10,
+                                         boost::function<void(const PointCloud2::ConstPtr&)>(
+                                             [this, name](const PointCloud2::ConstPtr& cloud) {
+                                               deformed_[name].push_back(cloud);
+                                             })));
     }
     contacts_subscriber_ = handle_.subscribe<ContactArray>(
-        kNode + "/contacts", 10, boost::function<void(const ContactArray::ConstPtr&)>(
-                                     [this](const ContactArray::ConstPtr& m) { contacts_ = m; }));
-    stats_subscriber_ = handle_.subscribe<Stats>(
-        kNode + "/stats", 10,
-        boost::function<void(const Stats::ConstPtr&)>([this](const Stats::ConstPtr& m) { stats_ = m; }));
+        kNode + "/contacts", 10,
+        boost::function<void(const ContactArray::ConstPtr&)>(
+            [this](const ContactArray::ConstPtr& m) { contacts_ = m; }));
+    stats_subscriber_ =
+        handle_.subscribe<Stats>(kNode + "/stats", 10,
+                                 boost::function<void(const Stats::ConstPtr&)>(
+                                     [this](const Stats::ConstPtr& m) { stats_ = m; }));
     ASSERT_TRUE(waitFor([this] {
       for (const auto& [name, publisher] : inputs_) {
         if (publisher.getNumSubscribers() == 0) return false;
       }
-      return contacts_subscriber_.getNumPublishers() > 0 && stats_subscriber_.getNumPublishers() > 0;
+      return contacts_subscriber_.getNumPublishers() > 0 &&
+             stats_subscriber_.getNumPublishers() > 0;
     })) << "the nodelet did not connect";
     inputs_["floor"].publish(cloudOf(floorPoints(), "world"));
     inputs_["jaw"].publish(cloudOf(jawPoints(), "test_jaw"));
@@ -183,7 +188,8 @@ TEST_F(NodeletTest, SetLevelAnswersGoodAndBadRequests) {
     EXPECT_FALSE(bad.response.success);
     EXPECT_NE(bad.response.message.find("level " + std::to_string(level) + " is outside [0, " +
                                         std::to_string(max_level_) + "]"),
-              std::string::npos) << bad.response.message;
+              std::string::npos)
+        << bad.response.message;
     EXPECT_EQ(bad.response.level, 1) << "a refused request leaves the level alone";
     EXPECT_EQ(bad.response.max_level, max_level_);
   }
@@ -370,9 +376,11 @@ TEST_F(NodeletTest, TrackedObjectKeepsItsPointsWhenTheFirstCloudHasHoles) {
   ros::Publisher input = handle_.advertise<PointCloud2>("/test/hand", 10);
   std::deque<PointCloud2::ConstPtr> deformed;
   ros::Subscriber output = handle_.subscribe<PointCloud2>(
-      kNode + "/deformed/hand", 10, boost::function<void(const PointCloud2::ConstPtr&)>(
-                                        [&](const PointCloud2::ConstPtr& c) { deformed.push_back(c); }));
-  ASSERT_TRUE(waitFor([&] { return input.getNumSubscribers() > 0 && output.getNumPublishers() > 0; }));
+      kNode + "/deformed/hand", 10,
+      boost::function<void(const PointCloud2::ConstPtr&)>(
+          [&](const PointCloud2::ConstPtr& c) { deformed.push_back(c); }));
+  ASSERT_TRUE(
+      waitFor([&] { return input.getNumSubscribers() > 0 && output.getNumPublishers() > 0; }));
   input.publish(cloudOf(first, "world"));
   Points moved = hand;
   for (auto& p : moved) p.z() += 0.05;
@@ -415,7 +423,8 @@ TEST_F(NodeletTest, KinematicObjectFollowsItsFrame) {
   const auto jawAt = [&](const Eigen::Vector3d& origin) {
     Points published;
     if (deformed_["jaw"].empty() ||
-        !readCloudPoints(*deformed_["jaw"].back(), NonFinitePoints::kDrop, 1 << 20, published).ok() ||
+        !readCloudPoints(*deformed_["jaw"].back(), NonFinitePoints::kDrop, 1 << 20, published)
+             .ok() ||
         published.size() != local.size()) {
       return false;
     }
@@ -539,8 +548,9 @@ TEST(NodeInProcess, ContactsASubscriberHoldsStayAsPublished) {
   ros::NodeHandle handle;
   ros::Subscriber contacts = handle.subscribe<ContactArray>(
       "/in_process_node/contacts", 100,
-      boost::function<void(const ContactArray::ConstPtr&)>(
-          [&](const ContactArray::ConstPtr& m) { received.push_back({m, *m}); }));
+      boost::function<void(const ContactArray::ConstPtr&)>([&](const ContactArray::ConstPtr& m) {
+        received.push_back({m, *m});
+      }));
   ros::Publisher floor = handle.advertise<PointCloud2>("/in_process/floor", 1, true);
   ros::Publisher probe = handle.advertise<PointCloud2>("/in_process/probe", 1);
   floor.publish(cloudOf(floorPoints(), "world"));
@@ -557,7 +567,8 @@ TEST(NodeInProcess, ContactsASubscriberHoldsStayAsPublished) {
     std::size_t touching = 0;
     for (const auto& r : received) touching += !r.copy.contacts.empty();
     return touching >= kMessages;
-  })) << received.size() << " messages, fewer than " << kMessages << " with contacts";
+  })) << received.size()
+      << " messages, fewer than " << kMessages << " with contacts";
   std::size_t changed = 0;
   for (std::size_t i = 0; i < received.size(); ++i) {
     // The messages' generated operator== compares every field.

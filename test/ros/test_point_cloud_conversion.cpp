@@ -214,8 +214,7 @@ INSTANTIATE_TEST_SUITE_P(
     Cases, ReadBadCloudTest,
     ::testing::Values(
         BadCase{"missing_z", [](PointCloud2& c) { c.fields.pop_back(); }, "field 'z' is missing"},
-        BadCase{"integer_field",
-                [](PointCloud2& c) { c.fields[1].datatype = PointField::INT32; },
+        BadCase{"integer_field", [](PointCloud2& c) { c.fields[1].datatype = PointField::INT32; },
                 "field 'y' has datatype 5"},
         BadCase{"point_step_too_small", [](PointCloud2& c) { c.point_step = 8; },
                 "does not fit in point_step 8"},
@@ -245,7 +244,8 @@ TEST(WriteCloud, RoundTripsAndReusesItsBuffer) {
 
 TEST(WriteCloud, Float64KeepsEveryBitFarFromTheOriginWhereFloat32Rounds) {
   std::vector<Eigen::Vector3d> far;
-  for (const auto& p : kPoints) far.push_back(p + Eigen::Vector3d(1e5 + 0.0037, -2e5 + 0.0041, 3e4 + 0.0013));
+  for (const auto& p : kPoints)
+    far.push_back(p + Eigen::Vector3d(1e5 + 0.0037, -2e5 + 0.0041, 3e4 + 0.0013));
   PointCloud2 cloud;
   writeCloudPoints(far, cloud, PointField::FLOAT64);
   ASSERT_EQ(cloud.fields.size(), 3u);

@@ -171,7 +171,8 @@ ModelError errorAgainst(const Points& published, const Points& truth) {
 
 /// The node's parameters: the box from `model_file` placed at frame box_start, or without
 /// one from its first cloud, seen on `topic`.
-XmlRpc::XmlRpcValue nodeParams(const std::string& topic, const std::optional<std::string>& model_file) {
+XmlRpc::XmlRpcValue nodeParams(const std::string& topic,
+                               const std::optional<std::string>& model_file) {
   XmlRpc::XmlRpcValue params;
   params["fixed_frame"] = "world";
   params["rate_hz"] = 50;
@@ -276,7 +277,8 @@ class RegisterTest : public ::testing::Test {
     EXPECT_EQ(last_stats_->clouds_rejected, 0u);
     Points published;
     if (registered) {
-      EXPECT_TRUE(readCloudPoints(*deformed_, NonFinitePoints::kKeepAsNaN, 1 << 20, published).ok());
+      EXPECT_TRUE(
+          readCloudPoints(*deformed_, NonFinitePoints::kKeepAsNaN, 1 << 20, published).ok());
     }
     return published;
   }
@@ -293,7 +295,8 @@ class RegisterTest : public ::testing::Test {
   // tf's topics published as its broadcasters do, on publishers whose connection to the
   // node the test waits for: a camera pose sent before it would be lost.
   ros::Publisher tf_publisher_ = handle_.advertise<tf2_msgs::TFMessage>("/tf", 100);
-  ros::Publisher static_tf_publisher_ = handle_.advertise<tf2_msgs::TFMessage>("/tf_static", 100, true);
+  ros::Publisher static_tf_publisher_ =
+      handle_.advertise<tf2_msgs::TFMessage>("/tf_static", 100, true);
   tf2_msgs::TFMessage static_transforms_;
   ros::Publisher camera_publisher_;
   ros::Subscriber deformed_subscriber_;
@@ -334,13 +337,14 @@ TEST_F(RegisterTest, FollowsTheBoxFromAMovingCameraAndHoldsOnCloudsWithoutIt) {
     EXPECT_LT(registration().mean_residual_m, 0.003);
     EXPECT_EQ(registration().clouds_held, 0u);
   }
-  std::printf("[ MEASURED ] model against the true box over %d frames: worst mean %.2f mm, "
-              "worst max %.2f mm; last cloud %u finite points, %u used, %u rejected, "
-              "residual mean %.2f mm max %.2f mm, %.2f ms\n",
-              kFrames, 1e3 * worst.mean_m, 1e3 * worst.max_m, registration().cloud_points,
-              registration().used_points, registration().rejected_points,
-              1e3 * registration().mean_residual_m, 1e3 * registration().max_residual_m,
-              registration().time_ms);
+  std::printf(
+      "[ MEASURED ] model against the true box over %d frames: worst mean %.2f mm, "
+      "worst max %.2f mm; last cloud %u finite points, %u used, %u rejected, "
+      "residual mean %.2f mm max %.2f mm, %.2f ms\n",
+      kFrames, 1e3 * worst.mean_m, 1e3 * worst.max_m, registration().cloud_points,
+      registration().used_points, registration().rejected_points,
+      1e3 * registration().mean_residual_m, 1e3 * registration().max_residual_m,
+      registration().time_ms);
 
   // Clouds that do not show the box: every pixel a hole (the box out of sight), and a box
   // 0.12 m beside it (another object, in view, 4 cm from the box at the closest). The model
@@ -371,7 +375,8 @@ TEST_F(RegisterTest, FollowsTheBoxFromAMovingCameraAndHoldsOnCloudsWithoutIt) {
 
 TEST_F(RegisterTest, WithoutAModelFileTheFirstCloudIsTheModelAndLaterCloudsMoveIt) {
   const std::string topic = "/register_first_cloud/camera_points";
-  ASSERT_NO_FATAL_FAILURE(connectNode("/register_first_cloud", topic, nodeParams(topic, std::nullopt)));
+  ASSERT_NO_FATAL_FAILURE(
+      connectNode("/register_first_cloud", topic, nodeParams(topic, std::nullopt)));
   EXPECT_EQ(last_stats_->objects, 0u) << "no model before the first cloud";
   const PointCloud2 first_cloud = renderDepth(cameraPose(0), boxPose(0), random_);
   const Points model = publishAndWait(cameraPose(0), first_cloud);
@@ -385,7 +390,8 @@ TEST_F(RegisterTest, WithoutAModelFileTheFirstCloudIsTheModelAndLaterCloudsMoveI
   ModelError worst;
   for (int k = 1; k <= kFrames; ++k) {
     SCOPED_TRACE("frame " + std::to_string(k));
-    const Points published = publishAndWait(cameraPose(k), renderDepth(cameraPose(k), boxPose(k), random_));
+    const Points published =
+        publishAndWait(cameraPose(k), renderDepth(cameraPose(k), boxPose(k), random_));
     ASSERT_EQ(published.size(), model.size());
     Points truth = model;
     for (Eigen::Vector3d& p : truth) p = boxPose(k) * boxPose(0).inverse() * p;
@@ -397,8 +403,10 @@ TEST_F(RegisterTest, WithoutAModelFileTheFirstCloudIsTheModelAndLaterCloudsMoveI
     ASSERT_EQ(applied_->registrations.size(), 1u);
     EXPECT_FALSE(registration().held);
   }
-  std::printf("[ MEASURED ] first-cloud model against the true motion over %d frames: worst mean "
-              "%.2f mm, worst max %.2f mm\n", kFrames, 1e3 * worst.mean_m, 1e3 * worst.max_m);
+  std::printf(
+      "[ MEASURED ] first-cloud model against the true motion over %d frames: worst mean "
+      "%.2f mm, worst max %.2f mm\n",
+      kFrames, 1e3 * worst.mean_m, 1e3 * worst.max_m);
 }
 
 TEST_F(RegisterTest, AMissingModelFileStopsTheNodeAtStartNamingObjectAndPath) {

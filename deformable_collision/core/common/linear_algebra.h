@@ -8,7 +8,7 @@ namespace deformable_collision {
 /// Result of a symmetric positive semi-definite pseudo-inversion.
 template <int N>
 struct SymmetricPseudoInverse {
-  Eigen::Matrix<double, N, N> inverse;         ///< Moore-Penrose inverse on the well-conditioned range.
+  Eigen::Matrix<double, N, N> inverse;  ///< Moore-Penrose inverse on the well-conditioned range.
   Eigen::Matrix<double, N, N> null_projector;  ///< Projector onto the discarded (near-null) space.
   int rank = 0;
 };

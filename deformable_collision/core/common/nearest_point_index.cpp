@@ -28,8 +28,9 @@ void NearestPointIndex::split(std::uint32_t begin, std::uint32_t end) {
   int axis = 0;
   (high - low).maxCoeff(&axis);
   const std::uint32_t mid = begin + (end - begin) / 2;
-  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
-                   [&](std::uint32_t i, std::uint32_t j) { return points[i][axis] < points[j][axis]; });
+  std::nth_element(
+      order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
+      [&](std::uint32_t i, std::uint32_t j) { return points[i][axis] < points[j][axis]; });
   split_axis_[mid] = static_cast<std::uint8_t>(axis);
   split(begin, mid);
   split(mid + 1, end);
@@ -42,8 +43,8 @@ bool NearestPointIndex::nearest(const Eigen::Vector3d& query, Nearest& found) co
   return true;
 }
 
-void NearestPointIndex::search(std::uint32_t begin, std::uint32_t end,
-                               const Eigen::Vector3d& query, Nearest& best) const {
+void NearestPointIndex::search(std::uint32_t begin, std::uint32_t end, const Eigen::Vector3d& query,
+                               Nearest& best) const {
   const std::vector<Eigen::Vector3d>& points = *points_;
   if (end - begin <= kLeafSize) {
     for (std::uint32_t s = begin; s < end; ++s) {

@@ -13,7 +13,7 @@ namespace deformable_collision {
 class NearestPointIndex {
  public:
   struct Nearest {
-    std::uint32_t index = 0;      ///< Into the points given to build().
+    std::uint32_t index = 0;  ///< Into the points given to build().
     double squared_distance_m2 = 0.0;
   };
 

@@ -21,7 +21,7 @@ enum class VectorWidth { kPortable, kAvx2, kAvx512 };
 
 inline VectorWidth widestVectors() {
 #if defined(__GNUC__) && defined(__x86_64__)
-  static const VectorWidth widest = wideVectorsAvailable()             ? VectorWidth::kAvx512
+  static const VectorWidth widest = wideVectorsAvailable()           ? VectorWidth::kAvx512
                                     : __builtin_cpu_supports("avx2") ? VectorWidth::kAvx2
                                                                      : VectorWidth::kPortable;
   return widest;

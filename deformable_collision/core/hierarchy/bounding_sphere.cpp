@@ -66,8 +66,7 @@ Ball circumBall(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
   edges.row(1) = c - a;
   edges.row(2) = d - a;
   const double det = edges.determinant();
-  const double scale =
-      edges.row(0).norm() * edges.row(1).norm() * edges.row(2).norm();
+  const double scale = edges.row(0).norm() * edges.row(1).norm() * edges.row(2).norm();
   if (std::abs(det) > 1e-10 * scale) {
     const Eigen::Vector3d rhs(0.5 * edges.row(0).squaredNorm(), 0.5 * edges.row(1).squaredNorm(),
                               0.5 * edges.row(2).squaredNorm());

@@ -40,8 +40,8 @@ class NodeSlabs {
     const double along = slab.normal.dot(sphere.center);
     // The dot products here and in compute() round by a few ulps of the points' and the
     // centre's norms (|v|_1 >= |v|_2), far below this margin, even 1e5 m from the origin.
-    const double margin = 1e-12 * (sphere.center.cwiseAbs().sum() + sphere.radius + distance_m +
-                                   slab.magnitude_m);
+    const double margin =
+        1e-12 * (sphere.center.cwiseAbs().sum() + sphere.radius + distance_m + slab.magnitude_m);
     const double reach = sphere.radius + distance_m + margin;
     return along - reach > slab.high_m || along + reach < slab.low_m;
   }
@@ -49,8 +49,8 @@ class NodeSlabs {
  private:
   struct Slab {
     Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< Unit.
-    double low_m = 0.0;   ///< The least of normal . x over the node's points.
-    double high_m = 0.0;  ///< The greatest.
+    double low_m = 0.0;        ///< The least of normal . x over the node's points.
+    double high_m = 0.0;       ///< The greatest.
     double magnitude_m = 0.0;  ///< The largest norm of the node's points, for rounding.
   };
   std::vector<Slab> slabs_;

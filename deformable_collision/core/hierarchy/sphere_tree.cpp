@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "deformable_collision/core/common/linear_algebra.h"
 #include "deformable_collision/core/common/detail/wide_kernels.h"
+#include "deformable_collision/core/common/linear_algebra.h"
 #include "deformable_collision/core/common/wide_vectors.h"
 
 namespace deformable_collision {
@@ -59,7 +59,8 @@ template <int Count>
   const Eigen::Vector3d& translation = deformation.translation;
   if (mode == DeformationMode::kQuadratic) {
     const double features[9] = {x, y, z, x * x, y * y, z * z, x * y, y * z, z * x};
-    return {rowSum<9>(t, 0, features) + translation.x(), rowSum<9>(t, 1, features) + translation.y(),
+    return {rowSum<9>(t, 0, features) + translation.x(),
+            rowSum<9>(t, 1, features) + translation.y(),
             rowSum<9>(t, 2, features) + translation.z()};
   }
   const double features[3] = {x, y, z};

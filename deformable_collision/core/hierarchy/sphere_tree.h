@@ -38,9 +38,9 @@ enum class SphereUpdate {
 /// (x - x_cm^0, docs/design.md, erratum 1), except for an object root over several clusters.
 struct SphereNode {
   Eigen::Vector3d rest_center = Eigen::Vector3d::Zero();  ///< c^0 - x_cm^0 of its cluster.
-  double rest_radius_m = 0.0;                              ///< r^0.
-  double quadratic_extent_m2 = 0.0;  ///< q_max of the paper's eq. 13, centred.
-  double mixed_extent_m2 = 0.0;      ///< m_max of eq. 14, with erratum 2.
+  double rest_radius_m = 0.0;                             ///< r^0.
+  double quadratic_extent_m2 = 0.0;                       ///< q_max of the paper's eq. 13, centred.
+  double mixed_extent_m2 = 0.0;                           ///< m_max of eq. 14, with erratum 2.
   std::uint32_t first_child = 0;
   std::uint32_t child_count = 0;
   std::uint32_t first_point = 0;  ///< Range of the node's points in pointIndices().

@@ -87,12 +87,12 @@ std::vector<std::uint32_t> levelChildCounts(std::uint32_t points, std::uint32_t 
 SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& config)
     : body_(&body) {
   if (config.branching < 2) {
-    throw std::invalid_argument("SphereTreeConfig.branching = " +
-                                std::to_string(config.branching) + " must be >= 2");
+    throw std::invalid_argument("SphereTreeConfig.branching = " + std::to_string(config.branching) +
+                                " must be >= 2");
   }
   if (config.leaf_size < 1) {
-    throw std::invalid_argument("SphereTreeConfig.leaf_size = " +
-                                std::to_string(config.leaf_size) + " must be >= 1");
+    throw std::invalid_argument("SphereTreeConfig.leaf_size = " + std::to_string(config.leaf_size) +
+                                " must be >= 1");
   }
   if (config.exact_radius_points < 0) {
     throw std::invalid_argument("SphereTreeConfig.exact_radius_points = " +
@@ -122,7 +122,8 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
   cluster_norms_.resize(body.clusterCount());
   scratch_spheres_.reserve(most_children);
   std::size_t largest_node = 0;
-  for (const auto& node : nodes_) largest_node = std::max<std::size_t>(largest_node, node.point_count);
+  for (const auto& node : nodes_)
+    largest_node = std::max<std::size_t>(largest_node, node.point_count);
   scratch_points_.reserve(largest_node);
   scratch_order_.reserve(largest_node);
 }
@@ -240,14 +241,17 @@ void SphereTree::orderLeaves() {
     return nodes_[a].first_point < nodes_[b].first_point;
   });
   std::vector<std::uint32_t> leaf_starts(leaf_nodes_.size());
-  for (std::uint32_t k = 0; k < leaf_nodes_.size(); ++k) leaf_starts[k] = nodes_[leaf_nodes_[k]].first_point;
+  for (std::uint32_t k = 0; k < leaf_nodes_.size(); ++k)
+    leaf_starts[k] = nodes_[leaf_nodes_[k]].first_point;
   for (SphereNode& node : nodes_) {
     const auto first = std::lower_bound(leaf_starts.begin(), leaf_starts.end(), node.first_point);
-    const auto last = std::lower_bound(first, leaf_starts.end(), node.first_point + node.point_count);
+    const auto last =
+        std::lower_bound(first, leaf_starts.end(), node.first_point + node.point_count);
     node.first_leaf = static_cast<std::uint32_t>(first - leaf_starts.begin());
     node.leaf_count = static_cast<std::uint32_t>(last - first);
   }
-  for (auto* values : {&leaf_spheres_.x, &leaf_spheres_.y, &leaf_spheres_.z, &leaf_spheres_.radius}) {
+  for (auto* values :
+       {&leaf_spheres_.x, &leaf_spheres_.y, &leaf_spheres_.z, &leaf_spheres_.radius}) {
     values->assign(leaf_nodes_.size(), 0.0);
   }
   leaf_slot_starts_ = leaf_starts;

@@ -140,8 +140,8 @@ struct ClosestPair {
   // The kernels sum the squared distance as Eigen's squaredNorm() does, so its root is
   // (x - y).norm() to the bit: one root for both the normal and the depth.
   const double distance_m = std::sqrt(pair.squared_distance);
-  contact.normal = distance_m > 0.0 ? Eigen::Vector3d((x - y) / distance_m)
-                                     : Eigen::Vector3d::UnitZ();
+  contact.normal =
+      distance_m > 0.0 ? Eigen::Vector3d((x - y) / distance_m) : Eigen::Vector3d::UnitZ();
   contact.depth_m = contact_distance_m - distance_m;
   // Position and depth are those of a closest pair itself.
   contact.error_bound_m = 0.0;
@@ -183,8 +183,7 @@ template <VectorWidth Width>
 }
 
 [[gnu::always_inline]] inline Sphere leafSphere(const LeafSpheres& spheres, std::uint32_t leaf) {
-  return {Eigen::Vector3d(spheres.x[leaf], spheres.y[leaf], spheres.z[leaf]),
-          spheres.radius[leaf]};
+  return {Eigen::Vector3d(spheres.x[leaf], spheres.y[leaf], spheres.z[leaf]), spheres.radius[leaf]};
 }
 
 /// Leaves under a node at which the descent to the leaves stops: their spheres are then
@@ -197,10 +196,8 @@ static_assert(kBucketLeaves * kBucketLeaves <= 64, "a bucket pair's leaf pairs a
 template <VectorWidth Width>
 [[gnu::always_inline]] inline void collideBuckets(const SphereTree& a, const NodeState& bucket_a,
                                                   const SphereTree& b, const NodeState& bucket_b,
-                                                  double contact_distance_m,
-                                                  const PairSlabs& slabs,
-                                                  ContactSink& contacts,
-                                                  QueryCounters& counters) {
+                                                  double contact_distance_m, const PairSlabs& slabs,
+                                                  ContactSink& contacts, QueryCounters& counters) {
   counters.node_pairs_tested += bucket_a.leaf_count * bucket_b.leaf_count;
   const LeafSpheres& spheres_a = a.leafSpheres();
   const LeafSpheres& spheres_b = b.leafSpheres();
@@ -210,12 +207,13 @@ template <VectorWidth Width>
   // all rather than one per leaf of a, whose ends a branch predictor cannot foresee.
   std::uint64_t within_reach = 0;
   for (std::uint32_t k = 0; k < bucket_a.leaf_count; ++k) {
-    within_reach |= static_cast<std::uint64_t>(reachMask<Width>(
-                        spheres_a.x[first_a + k], spheres_a.y[first_a + k], spheres_a.z[first_a + k],
-                        spheres_a.radius[first_a + k] + contact_distance_m, &spheres_b.x[first_b],
-                        &spheres_b.y[first_b], &spheres_b.z[first_b], &spheres_b.radius[first_b],
-                        bucket_b.leaf_count))
-                    << (8 * k);
+    within_reach |=
+        static_cast<std::uint64_t>(reachMask<Width>(
+            spheres_a.x[first_a + k], spheres_a.y[first_a + k], spheres_a.z[first_a + k],
+            spheres_a.radius[first_a + k] + contact_distance_m, &spheres_b.x[first_b],
+            &spheres_b.y[first_b], &spheres_b.z[first_b], &spheres_b.radius[first_b],
+            bucket_b.leaf_count))
+        << (8 * k);
   }
   while (within_reach != 0) {
     const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(within_reach));
@@ -245,8 +243,8 @@ __attribute__((target("avx2"), flatten)) void collideBucketsAvx2(
     const SphereTree& a, const NodeState& bucket_a, const SphereTree& b, const NodeState& bucket_b,
     double contact_distance_m, const PairSlabs& slabs, ContactSink& contacts,
     QueryCounters& counters) {
-  collideBuckets<VectorWidth::kAvx2>(a, bucket_a, b, bucket_b, contact_distance_m, slabs,
-                                     contacts, counters);
+  collideBuckets<VectorWidth::kAvx2>(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
+                                     counters);
 }
 #endif
 
@@ -264,14 +262,10 @@ void collideBucketsPortable(const SphereTree& a, const NodeState& bucket_a, cons
 /// object in reach of another has most of its buckets in reach too (a pile), and costs at
 /// most kBucketLeaves buckets however its contacts lie.
 template <VectorWidth Width>
-[[gnu::always_inline]] inline void collideBucketSets(SphereTree& a, const std::uint32_t* buckets_a,
-                                                     std::uint32_t count_a, SphereTree& b,
-                                                     const std::uint32_t* buckets_b,
-                                                     std::uint32_t count_b,
-                                                     double contact_distance_m,
-                                                     const PairSlabs& slabs,
-                                                     ContactSink& contacts,
-                                                     QueryCounters& counters) {
+[[gnu::always_inline]] inline void collideBucketSets(
+    SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a, SphereTree& b,
+    const std::uint32_t* buckets_b, std::uint32_t count_b, double contact_distance_m,
+    const PairSlabs& slabs, ContactSink& contacts, QueryCounters& counters) {
   double x[kBucketLeaves], y[kBucketLeaves], z[kBucketLeaves], radius[kBucketLeaves];
   for (std::uint32_t j = 0; j < count_b; ++j) {
     const Sphere& sphere = b.current(buckets_b[j], kBucketLeaves).sphere;
@@ -286,17 +280,17 @@ template <VectorWidth Width>
     const Sphere& sphere = bucket_a.sphere;
     std::uint32_t within_reach =
         reachMask<Width>(sphere.center.x(), sphere.center.y(), sphere.center.z(),
-                        sphere.radius + contact_distance_m, x, y, z, radius, count_b);
+                         sphere.radius + contact_distance_m, x, y, z, radius, count_b);
     while (within_reach != 0) {
       const auto j = static_cast<std::uint32_t>(__builtin_ctz(within_reach));
       within_reach &= within_reach - 1;
       const NodeState& bucket_b = b.current(buckets_b[j], kBucketLeaves);
-      if ((slabs.a || slabs.b) && slabs.apart(buckets_a[k], sphere, buckets_b[j], bucket_b.sphere,
-                                              contact_distance_m)) {
+      if ((slabs.a || slabs.b) &&
+          slabs.apart(buckets_a[k], sphere, buckets_b[j], bucket_b.sphere, contact_distance_m)) {
         continue;
       }
       collideBuckets<Width>(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
-                           counters);
+                            counters);
     }
   }
 }
@@ -319,9 +313,8 @@ __attribute__((target("avx2"), flatten)) void collideBucketSetsAvx2(
 }
 #endif
 
-void collideBucketSetsPortable(SphereTree& a, const std::uint32_t* buckets_a,
-                               std::uint32_t count_a, SphereTree& b,
-                               const std::uint32_t* buckets_b, std::uint32_t count_b,
+void collideBucketSetsPortable(SphereTree& a, const std::uint32_t* buckets_a, std::uint32_t count_a,
+                               SphereTree& b, const std::uint32_t* buckets_b, std::uint32_t count_b,
                                double contact_distance_m, const PairSlabs& slabs,
                                ContactSink& contacts, QueryCounters& counters) {
   collideBucketSets<VectorWidth::kPortable>(a, buckets_a, count_a, b, buckets_b, count_b,
@@ -330,7 +323,7 @@ void collideBucketSetsPortable(SphereTree& a, const std::uint32_t* buckets_a,
 
 /// Whether two spheres come closer than the contact distance.
 [[gnu::always_inline]] inline bool withinReach(const Sphere& a, const Sphere& b,
-                                             double contact_distance_m) {
+                                               double contact_distance_m) {
   const double reach = a.radius + b.radius + contact_distance_m;
   return (a.center - b.center).squaredNorm() < reach * reach;
 }
@@ -383,8 +376,8 @@ struct HierarchyQuery::Descent {
       return;
     }
     if (vectors == VectorWidth::kAvx2) {
-      collideBucketSetsAvx2(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m,
-                            slabs, contacts, counters);
+      collideBucketSetsAvx2(a, buckets_a, count_a, b, buckets_b, count_b, contact_distance_m, slabs,
+                            contacts, counters);
       return;
     }
 #endif
@@ -396,18 +389,15 @@ struct HierarchyQuery::Descent {
                                                     const NodeState& bucket_b) const {
 #if defined(__GNUC__) && defined(__x86_64__)
     if (vectors == VectorWidth::kAvx512) {
-      collideBucketsAvx512(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
-                           counters);
+      collideBucketsAvx512(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts, counters);
       return;
     }
     if (vectors == VectorWidth::kAvx2) {
-      collideBucketsAvx2(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
-                         counters);
+      collideBucketsAvx2(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts, counters);
       return;
     }
 #endif
-    collideBucketsPortable(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts,
-                           counters);
+    collideBucketsPortable(a, bucket_a, b, bucket_b, contact_distance_m, slabs, contacts, counters);
   }
 
   /// The contact of two nodes above the leaves, with the pair's least overlap as its depth.
@@ -432,16 +422,14 @@ struct HierarchyQuery::Descent {
   }
 
   /// The contacts of a pair within reach at which the descent ends on both sides.
-  [[gnu::always_inline]] void collideWhereDescentEnds(const PendingPair& pair,
-                                                      const NodeState& na,
+  [[gnu::always_inline]] void collideWhereDescentEnds(const PendingPair& pair, const NodeState& na,
                                                       const NodeState& nb) const {
     if (small_a || small_b) {
       const std::uint32_t bucket_a = pair.node_a;
       const std::uint32_t bucket_b = pair.node_b;
-      leafContactsOfBucketSets(small_a ? a.buckets().data() : &bucket_a,
-                               small_a ? bucketCount(a) : 1,
-                               small_b ? b.buckets().data() : &bucket_b,
-                               small_b ? bucketCount(b) : 1);
+      leafContactsOfBucketSets(
+          small_a ? a.buckets().data() : &bucket_a, small_a ? bucketCount(a) : 1,
+          small_b ? b.buckets().data() : &bucket_b, small_b ? bucketCount(b) : 1);
     } else if (to_leaves) {
       leafContactsOfBuckets(na, nb);
     } else {
@@ -472,8 +460,7 @@ struct HierarchyQuery::Descent {
   [[gnu::always_inline]] std::size_t stackChildrenInReach(std::vector<PendingPair>& stack,
                                                           std::size_t stacked,
                                                           const PendingPair& pair,
-                                                          const NodeState& na,
-                                                          const NodeState& nb,
+                                                          const NodeState& na, const NodeState& nb,
                                                           bool split_a) const {
     const NodeState& split = split_a ? na : nb;
     if (stack.size() < stacked + split.child_count) {
@@ -488,8 +475,7 @@ struct HierarchyQuery::Descent {
             slabs.apart(c, child, pair.node_b, nb.sphere, contact_distance_m)) {
           continue;
         }
-        stack[stacked++] = {c, pair.node_b,
-                            leastOverlap(pair.least_overlap_m, child, nb.sphere)};
+        stack[stacked++] = {c, pair.node_b, leastOverlap(pair.least_overlap_m, child, nb.sphere)};
         a.prefetchChildren(c);
       }
     } else {
@@ -500,8 +486,7 @@ struct HierarchyQuery::Descent {
             slabs.apart(pair.node_a, na.sphere, c, child, contact_distance_m)) {
           continue;
         }
-        stack[stacked++] = {pair.node_a, c,
-                            leastOverlap(pair.least_overlap_m, na.sphere, child)};
+        stack[stacked++] = {pair.node_a, c, leastOverlap(pair.least_overlap_m, na.sphere, child)};
         b.prefetchChildren(c);
       }
     }
@@ -527,9 +512,16 @@ void HierarchyQuery::collide(SphereTree& a, SphereTree& b, int level, double con
                              ContactSink& contacts, QueryCounters& counters,
                              const PairSlabs& slabs) {
   const bool to_leaves = level >= std::max(a.maxLevel(), b.maxLevel());
-  const Descent descent{a, b, level, contact_distance_m, to_leaves ? slabs : PairSlabs{},
-                        contacts, counters, vectors_,
-                        to_leaves, to_leaves ? kBucketLeaves : 0,
+  const Descent descent{a,
+                        b,
+                        level,
+                        contact_distance_m,
+                        to_leaves ? slabs : PairSlabs{},
+                        contacts,
+                        counters,
+                        vectors_,
+                        to_leaves,
+                        to_leaves ? kBucketLeaves : 0,
                         to_leaves && a.buckets().size() <= kBucketLeaves,
                         to_leaves && b.buckets().size() <= kBucketLeaves};
   const std::uint32_t leaf_limit = descent.leaf_limit;

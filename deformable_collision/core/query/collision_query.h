@@ -6,9 +6,9 @@
 #include <utility>
 #include <vector>
 
+#include "deformable_collision/core/common/wide_vectors.h"
 #include "deformable_collision/core/hierarchy/node_slabs.h"
 #include "deformable_collision/core/hierarchy/sphere_tree.h"
-#include "deformable_collision/core/common/wide_vectors.h"
 
 namespace deformable_collision {
 
@@ -51,7 +51,7 @@ class ContactSink {
 struct QueryCounters {
   std::size_t node_pairs_tested = 0;
   std::size_t leaf_pairs_tested = 0;  ///< Leaf pairs whose points were tested.
-  std::size_t point_tests = 0;  ///< Point-sphere and point-point distance tests.
+  std::size_t point_tests = 0;        ///< Point-sphere and point-point distance tests.
 };
 
 /// The slabs of the query's static and kinematic objects (NodeSlabs), or null: towards the

@@ -46,15 +46,15 @@ void validateRegistrationConfig(const RegistrationConfig& config);
 
 /// What registering one cloud did.
 struct RegistrationReport {
-  bool held = false;                 ///< Too few matches: the model was left where it was.
-  std::size_t cloud_points = 0;      ///< Finite points of the cloud.
-  std::size_t used_points = 0;       ///< Thinned cloud points matched in the last round.
-  std::size_t rejected_points = 0;   ///< Thinned cloud points left out in the last round.
+  bool held = false;                ///< Too few matches: the model was left where it was.
+  std::size_t cloud_points = 0;     ///< Finite points of the cloud.
+  std::size_t used_points = 0;      ///< Thinned cloud points matched in the last round.
+  std::size_t rejected_points = 0;  ///< Thinned cloud points left out in the last round.
   /// Thinned cloud points the filter said were not the object's (left out of the above).
   std::size_t excluded_points = 0;
-  double mean_residual_m = 0.0;      ///< Over the used points, from the final model.
-  double max_residual_m = 0.0;       ///< Over the used points, from the final model.
-  double time_ms = 0.0;              ///< Steady-clock time of the whole registration.
+  double mean_residual_m = 0.0;  ///< Over the used points, from the final model.
+  double max_residual_m = 0.0;   ///< Over the used points, from the final model.
+  double time_ms = 0.0;          ///< Steady-clock time of the whole registration.
 };
 
 /// Correspondence-free registration of a shape-matching model to an unordered, partial,
@@ -80,9 +80,9 @@ class CloudRegistration {
   /// Fits `body` to `cloud_m` (any size and order; non-finite points are skipped),
   /// starting from the body's current state. With `viewpoint_m`, the camera's position in
   /// the cloud's frame, only model points whose surface faces the camera are matched: the
-  /// far side of a thin object and the hidden faces next to a seen edge stay out. A cloud with too few matches (none, all NaN,
-  /// another object's, far away) leaves the body unchanged and says so in `held`.
-  /// Steady state (the same body, clouds no larger than before) allocates nothing.
+  /// far side of a thin object and the hidden faces next to a seen edge stay out. A cloud with too
+  /// few matches (none, all NaN, another object's, far away) leaves the body unchanged and says so
+  /// in `held`. Steady state (the same body, clouds no larger than before) allocates nothing.
   /// `filter`, if given, leaves out the thinned cloud points it excludes.
   RegistrationReport registerCloud(ShapeMatchingBody& body,
                                    const std::vector<Eigen::Vector3d>& cloud_m,

@@ -30,7 +30,7 @@ class PointMoments {
   Eigen::Matrix3d scatter() const {
     Eigen::Matrix3d squares;
     squares << products_[0], products_[3], products_[5],  //
-        products_[3], products_[1], products_[4],          //
+        products_[3], products_[1], products_[4],         //
         products_[5], products_[4], products_[2];
     const Eigen::Vector3d m = mean();
     return squares / count_ - m * m.transpose();
@@ -145,10 +145,9 @@ Eigen::Vector3d ContactResponse::separatingNormal(const ResolvingPair& pair) {
     }
   }
   const double spread = 0.1 * config_.contact_distance_m;
-  const Eigen::Vector3d across =
-      separatingDirection({tree_a, nodes_a.nodes, nodes_a.contacts_of_node},
-                          {tree_b, nodes_b.nodes, nodes_b.contacts_of_node}, pair.leaves,
-                          spread * spread);
+  const Eigen::Vector3d across = separatingDirection(
+      {tree_a, nodes_a.nodes, nodes_a.contacts_of_node},
+      {tree_b, nodes_b.nodes, nodes_b.contacts_of_node}, pair.leaves, spread * spread);
   Eigen::Vector3d normal = pair.side_of_a;
   if (across.squaredNorm() > 0.0) {
     normal = across.dot(pair.side_of_a) < 0.0 ? Eigen::Vector3d(-across) : across;

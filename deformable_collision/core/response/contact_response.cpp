@@ -34,7 +34,6 @@ Eigen::Vector3d stopSliding(const Eigen::Vector3d& relative, const Eigen::Vector
 
 }  // namespace
 
-
 void ContactResponse::rankSupport() {
   constexpr std::uint32_t kUnsupported = std::numeric_limits<std::uint32_t>::max();
   // Adjacency of the touching pairs (the contact runs), in compressed rows.
@@ -136,7 +135,8 @@ void ContactResponse::resolvePairs() {
     const ContactRun& run = contact_runs_[r];
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
-    if (a.dynamic() || b.dynamic()) resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
+    if (a.dynamic() || b.dynamic())
+      resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
   };
   // The pairs with a fixed object come first (support depth 0); their moves are made
   // together before the pairs between dynamic objects are resolved.
@@ -236,8 +236,7 @@ void ContactResponse::stopApproachToFixedPartners() {
     Object& moving = a.dynamic() ? a : b;
     const auto* side = moving.contact_memory.find(a.dynamic() ? run.object_b : run.object_a);
     if (!side || side->cycle != cycle_count_) continue;
-    const double approach =
-        (moving.mean_velocity + moving.velocity_change).dot(side->normal);
+    const double approach = (moving.mean_velocity + moving.velocity_change).dot(side->normal);
     if (approach < 0.0) moving.velocity_change -= approach * side->normal;
   }
 }
@@ -277,8 +276,9 @@ void ContactResponse::applyObjectResponse(Object& object) {
   object.stale = true;
 }
 
-void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
-                        std::size_t run_begin, std::size_t run_end) {
+void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t index_a,
+                                  std::uint32_t index_b, std::size_t run_begin,
+                                  std::size_t run_end) {
   // Pushes per contact, for a (along +normal) and b (along -normal): a node's depth along
   // a normal from b to a, shared by inverse mass between dynamic nodes.
   pushes_.clear();
@@ -316,7 +316,8 @@ void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t index_a, s
   exchangeVelocities(pair, normal);
 }
 
-bool ContactResponse::againstFixedPartner(const Object& object, const Eigen::Vector3d& direction) const {
+bool ContactResponse::againstFixedPartner(const Object& object,
+                                          const Eigen::Vector3d& direction) const {
   for (const auto& side : object.contact_memory.sides) {
     if (side.cycle != cycle_count_ || objects_[side.partner]->dynamic()) continue;
     // Within 45 degrees of straight into the partner, the cone in which a surface carries.
@@ -427,7 +428,7 @@ void ContactResponse::exchangeVelocities(ResolvingPair& pair, const Eigen::Vecto
 // tilts by some degrees, and a box in a stack, lifted a little along it each cycle and
 // falling back straight, would walk off the box below.
 bool ContactResponse::holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
-                               double share_a) const {
+                                         double share_a) const {
   const Object& a = pair.a;
   const Object& b = pair.b;
   const Eigen::Vector3d step_a = stepOf(a);
@@ -460,9 +461,16 @@ bool ContactResponse::isSupportLink(const ContactRun& run) {
   Object& a = *objects_[run.object_a];
   Object& b = *objects_[run.object_b];
   if (a.dynamic() == b.dynamic()) return true;
-  ResolvingPair pair{a, b, run.object_a, run.object_b, run.begin, run.end, true,
+  ResolvingPair pair{a,
+                     b,
+                     run.object_a,
+                     run.object_b,
+                     run.begin,
+                     run.end,
+                     true,
                      contacts_[run.begin].contact.point_a != SphereContact::kNoPoint,
-                     Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+                     Eigen::Vector3d::Zero(),
+                     Eigen::Vector3d::Zero()};
   pair.side_of_a = sideOfA(pair);
   const bool a_fixed = !a.dynamic();
   const Object& moving = a_fixed ? b : a;

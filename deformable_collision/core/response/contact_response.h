@@ -144,8 +144,7 @@ class ContactResponse {
   void rememberSide(const ResolvingPair& pair, const Eigen::Vector3d& normal);
   void exchangeVelocities(ResolvingPair& pair, const Eigen::Vector3d& normal);
   /// Whether the pair sticks: its slip is taken back.
-  bool holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal,
-                          double share_a) const;
+  bool holdStaticFriction(ResolvingPair& pair, const Eigen::Vector3d& normal, double share_a) const;
 
   /// One contact's push: depths along `normal` (from b to a) that a and b must move.
   struct ContactPush {

@@ -62,8 +62,8 @@ void DentScratch::averageDisplacements() {
 // may stop an object turning into it, never start it turning. They pay no faster than the
 // fastest stop: when few points are left to pay, the partner takes the rest.
 RigidVelocityChange DentScratch::balanceVelocityChanges(
-    const std::vector<Eigen::Vector3d>& positions, const RigidMotion& motion,
-    double point_mass_kg, double reach_m) {
+    const std::vector<Eigen::Vector3d>& positions, const RigidMotion& motion, double point_mass_kg,
+    double reach_m) {
   RigidVelocityChange balance;
   balance.center = motion.center;
   const std::size_t rest_count = positions.size() - displacements.size();
@@ -94,7 +94,8 @@ RigidVelocityChange DentScratch::balanceVelocityChanges(
   const double count = static_cast<double>(rest_count);
   const Eigen::Matrix3d about_rest_center =
       rest_inertia + (rest_offset * rest_offset.transpose() -
-                      rest_offset.squaredNorm() * Eigen::Matrix3d::Identity()) / count;
+                      rest_offset.squaredNorm() * Eigen::Matrix3d::Identity()) /
+                         count;
   const Eigen::Vector3d turn = angular_momentum - rest_offset.cross(momentum) / count;
   balance.spin = about_rest_center.ldlt().solve(turn);
   // Points on a line have no inertia about it, nor angular momentum to take there.

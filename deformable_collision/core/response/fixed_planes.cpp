@@ -98,9 +98,9 @@ double reachAcrossGaps(Iterator first, Iterator last, double start, double sign,
 }
 
 Eigen::Vector3d restCenter(const ShapeMatchingBody& body, const SphereNode& node) {
-  return node.cluster < 0 ? node.rest_center
-                          : Eigen::Vector3d(node.rest_center +
-                                            body.cluster(node.cluster).rest_center_of_mass);
+  return node.cluster < 0
+             ? node.rest_center
+             : Eigen::Vector3d(node.rest_center + body.cluster(node.cluster).rest_center_of_mass);
 }
 
 /// Clears `planar` for the nodes that are slices of a thicker part of the object: its
@@ -126,9 +126,8 @@ void clearSlices(const ShapeMatchingBody& body, const SphereTree& tree,
     const double past = 0.5 * gap_m;
     const bool continues_along =
         reachAcrossGaps(offsets.begin(), offsets.end(), own.along, 1.0, gap_m) > own.along + past;
-    const bool continues_against =
-        reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against, -1.0, gap_m) >
-        own.against + past;
+    const bool continues_against = reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against,
+                                                   -1.0, gap_m) > own.against + past;
     if (continues_along && continues_against) planar[n] = 0;
   }
 }
@@ -159,8 +158,7 @@ void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree,
     columnOffsets(body, tree, tree.node(source), center, normals[n], own.across + 0.5 * gap_m,
                   offsets);
     extent_along[n] = reachAcrossGaps(offsets.begin(), offsets.end(), own.along, 1.0, gap_m);
-    extent_against[n] =
-        reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against, -1.0, gap_m);
+    extent_against[n] = reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against, -1.0, gap_m);
   }
 }
 

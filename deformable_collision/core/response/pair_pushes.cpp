@@ -16,14 +16,14 @@ void ContactResponse::collectPushes(const ResolvingPair& pair) {
     push.node_b = c.node_b;
     push.points_a = pair.a.tree.node(c.node_a).point_count;
     push.points_b = pair.b.tree.node(c.node_b).point_count;
-    const bool pushed = pair.one_side_fixed ? pushFromFixedPlane(pair, c, push)
-                                            : pushBetweenDynamic(pair, c, push);
+    const bool pushed =
+        pair.one_side_fixed ? pushFromFixedPlane(pair, c, push) : pushBetweenDynamic(pair, c, push);
     if (pushed) pushes_.push_back(push);
   }
 }
 
-
-ContactResponse::FixedSurface ContactResponse::fixedSurface(const ResolvingPair& pair, std::uint32_t node) {
+ContactResponse::FixedSurface ContactResponse::fixedSurface(const ResolvingPair& pair,
+                                                            std::uint32_t node) {
   const bool a_fixed = !pair.a.dynamic();
   Object& fixed = a_fixed ? pair.a : pair.b;
   const int cluster = std::max(0, fixed.tree.node(node).cluster);
@@ -40,7 +40,7 @@ ContactResponse::FixedSurface ContactResponse::fixedSurface(const ResolvingPair&
 // deepest point's signed distance. Unlike the distance to the nearest point, that depth
 // does not shrink or flip when points have passed a thin layer such as a floor.
 bool ContactResponse::pushFromFixedPlane(const ResolvingPair& pair, const SphereContact& c,
-                               ContactPush& push) {
+                                         ContactPush& push) {
   const bool a_fixed = !pair.a.dynamic();
   Object& moving = a_fixed ? pair.b : pair.a;
   const FixedSurface surface = fixedSurface(pair, a_fixed ? c.node_a : c.node_b);
@@ -64,22 +64,22 @@ bool ContactResponse::pushFromFixedPlane(const ResolvingPair& pair, const Sphere
   double deepest = std::numeric_limits<double>::infinity();
   const auto& positions = moving.body.positions();
   for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-    deepest = std::min(deepest, (positions[moving.tree.pointIndices()[s]] - surface.plane_point)
-                                    .dot(surface.away));
+    deepest = std::min(
+        deepest,
+        (positions[moving.tree.pointIndices()[s]] - surface.plane_point).dot(surface.away));
   }
   const double depth = surface.reach + 0.5 * config_.contact_distance_m - deepest;
   if (depth <= 0.0) return false;
   push.normal = a_fixed ? Eigen::Vector3d(-surface.away) : surface.away;
   push.depth_a = a_fixed ? 0.0 : depth;
   push.depth_b = a_fixed ? depth : 0.0;
-  push.surface_m = surface.plane_point.dot(surface.away) + surface.reach +
-                   0.5 * config_.contact_distance_m;
+  push.surface_m =
+      surface.plane_point.dot(surface.away) + surface.reach + 0.5 * config_.contact_distance_m;
   return true;
 }
 
-
 ContactResponse::TouchedSurface ContactResponse::touchedSurface(const ResolvingPair& pair,
-                                            const Eigen::Vector3d& away) {
+                                                                const Eigen::Vector3d& away) {
   const bool a_fixed = !pair.a.dynamic();
   Object& fixed = a_fixed ? pair.a : pair.b;
   TouchedSurface touched{away, away.unitOrthogonal(), Eigen::Vector3d::Zero(), {}};
@@ -114,13 +114,15 @@ void ContactResponse::clearPassedPoints(ResolvingPair& pair) {
   // As in pushFromFixedPlane, the object has not moved in this response yet.
   const double depth = touched.level + 0.5 * config_.contact_distance_m - lowest;
   double deepest_push = 0.0;
-  for (const ContactPush& push : pushes_) deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
+  for (const ContactPush& push : pushes_)
+    deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
   // Points past the contacts' reach are cleared; those within it only brought back within
   // the contact distance, where the next cycle's contacts see them. Even within it the
   // contacts only dent their own nodes' points, and a soft object moves by less than its
   // deepest push: the points in line outside those nodes would stay where the step put them.
-  const double needed =
-      depth > deepest_push + config_.contact_distance_m ? depth : depth - config_.contact_distance_m;
+  const double needed = depth > deepest_push + config_.contact_distance_m
+                            ? depth
+                            : depth - config_.contact_distance_m;
   Eigen::Vector3d& move = a_fixed ? pair.move_b : pair.move_a;
   const double moved = move.dot(away);
   if (moved < needed) move += (needed - moved) * away;
@@ -182,7 +184,7 @@ double ContactResponse::lowestInLine(Object& moving, const TouchedSurface& touch
 // below the point spacing however deep), and piles would sink into themselves. Above the
 // leaves, spheres stand for their points (the query's depth).
 bool ContactResponse::pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& c,
-                               ContactPush& push) const {
+                                         ContactPush& push) const {
   const Object& a = pair.a;
   const Object& b = pair.b;
   push.normal = pair.dynamic_normal;
@@ -190,8 +192,8 @@ bool ContactResponse::pushBetweenDynamic(const ResolvingPair& pair, const Sphere
                                            pair_nodes_a_.reach_of_node[c.node_a] +
                                            config_.contact_distance_m
                                      : c.depth_m;
-  const double depth = overlap - 0.5 * config_.contact_distance_m -
-                       (a.translation - b.translation).dot(push.normal);
+  const double depth =
+      overlap - 0.5 * config_.contact_distance_m - (a.translation - b.translation).dot(push.normal);
   if (depth <= 0.0) return false;
   // Shared by inverse node mass: a's share is b's node mass over both; the object nearer
   // to a support does not move (shock propagation), nor one that the push would drive into
@@ -254,7 +256,7 @@ void ContactResponse::moveByMeanPush(ResolvingPair& pair) {
 // contact ends each cycle lower by the difference: a soft box under another one compacts into
 // itself, and with no stiffness at all it never stops.
 void ContactResponse::undoStepApproach(const ResolvingPair& pair, const Eigen::Vector3d& normal,
-                             Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const {
+                                       Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const {
   const Object& a = pair.a;
   const Object& b = pair.b;
   const Eigen::Vector3d step_a = stepOf(a);

@@ -82,8 +82,7 @@ void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second,
   const std::size_t begin = contacts.size();
   Object& a = *objects_[first];
   Object& b = *objects_[second];
-  const PairSlabs slabs{a.slabs.empty() ? nullptr : &a.slabs,
-                        b.slabs.empty() ? nullptr : &b.slabs};
+  const PairSlabs slabs{a.slabs.empty() ? nullptr : &a.slabs, b.slabs.empty() ? nullptr : &b.slabs};
   query_.collide(a.tree, b.tree, queryLevel(level, a.tree, a.config.kind, b.tree, b.config.kind),
                  config_.contact_distance_m, pair_contacts, query_counters_, slabs);
   if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});

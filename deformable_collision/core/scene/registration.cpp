@@ -2,8 +2,8 @@
 // the scene's other objects.
 #include <stdexcept>
 
-#include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/core/scene/detail/scene_object.h"
+#include "deformable_collision/core/scene/scene.h"
 
 namespace deformable_collision {
 
@@ -20,8 +20,8 @@ struct Scene::NearOtherObjects final : CloudPointFilter {
 };
 
 RegistrationReport Scene::registerCloud(std::size_t object,
-                                       const std::vector<Eigen::Vector3d>& cloud_m,
-                                       const std::optional<Eigen::Vector3d>& viewpoint_m) {
+                                        const std::vector<Eigen::Vector3d>& cloud_m,
+                                        const std::optional<Eigen::Vector3d>& viewpoint_m) {
   Object& o = *objects_.at(object);
   if (o.config.kind != ObjectKind::kTracked) {
     throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +

@@ -100,7 +100,8 @@ TrackedFitter Scene::makeTrackedFitter(const Object& object) {
   return TrackedFitter(object.body, object.rest_shape);
 }
 
-std::size_t Scene::addObject(const ObjectConfig& config, std::vector<Eigen::Vector3d> rest_points_m) {
+std::size_t Scene::addObject(const ObjectConfig& config,
+                             std::vector<Eigen::Vector3d> rest_points_m) {
   // Before the costly part: a name in use fails at once.
   if (findObject(config.name)) {
     throw std::invalid_argument("object name '" + config.name + "' is used twice");
@@ -348,13 +349,12 @@ void Scene::setCycleBudget(std::optional<double> budget_ms) {
   config_.cycle_budget_ms = budget_ms;
 }
 
-void Scene::setCycleCostSource(CycleCostSource source) {
-  cycle_cost_source_ = std::move(source);
-}
+void Scene::setCycleCostSource(CycleCostSource source) { cycle_cost_source_ = std::move(source); }
 
 void Scene::setTimeStep(double dt_s) {
   if (!(dt_s > 0.0 && dt_s <= 0.1)) {
-    throw std::invalid_argument("time step dt_s = " + std::to_string(dt_s) + " must be in (0, 0.1]");
+    throw std::invalid_argument("time step dt_s = " + std::to_string(dt_s) +
+                                " must be in (0, 0.1]");
   }
   config_.dt_s = dt_s;
 }

@@ -33,9 +33,9 @@ enum class ObjectKind {
 };
 
 inline constexpr EnumNames<ObjectKind, 4> kObjectKindNames{{{ObjectKind::kStatic, "static"},
-                                                          {ObjectKind::kKinematic, "kinematic"},
-                                                          {ObjectKind::kTracked, "tracked"},
-                                                          {ObjectKind::kDynamic, "dynamic"}}};
+                                                            {ObjectKind::kKinematic, "kinematic"},
+                                                            {ObjectKind::kTracked, "tracked"},
+                                                            {ObjectKind::kDynamic, "dynamic"}}};
 
 /// The kind named `name` (kObjectKindNames); std::nullopt otherwise.
 inline std::optional<ObjectKind> parseObjectKind(const std::string& name) {
@@ -51,9 +51,9 @@ struct ObjectConfig {
 
 struct SceneConfig {
   Eigen::Vector3d gravity_mps2 = Eigen::Vector3d(0.0, 0.0, -9.81);
-  double dt_s = 0.01;                ///< Step of one cycle, in (0, 0.1].
-  double contact_distance_m = 0.005; ///< Points closer than this are in contact (> 0).
-  int level = -1;                    ///< Level of detail; -1: the finest (the leaves).
+  double dt_s = 0.01;                 ///< Step of one cycle, in (0, 0.1].
+  double contact_distance_m = 0.005;  ///< Points closer than this are in contact (> 0).
+  int level = -1;                     ///< Level of detail; -1: the finest (the leaves).
   /// Set (> 0): each cycle runs at the level a LevelBudget picks to fit this many ms of
   /// detection and response, and `level` is not read (Scene::setCycleBudget).
   std::optional<double> cycle_budget_ms;
@@ -79,11 +79,11 @@ struct CycleStats {
   /// pairs that did not change since are taken from it. The counts below include its work.
   double detection_ahead_ms = 0.0;
   double response_ms = 0.0;
-  int level = 0;  ///< The level the contacts were found at.
-  bool level_auto = false;       ///< The level was picked to fit cycle_budget_ms.
-  double cycle_budget_ms = 0.0;  ///< The budget it was picked for; 0 when the level is fixed.
-  std::size_t objects_moved = 0;         ///< Stepped, posed or registered this cycle.
-  std::size_t object_pairs_tested = 0;   ///< Root sphere tests after the cycle's sweep.
+  int level = 0;                  ///< The level the contacts were found at.
+  bool level_auto = false;        ///< The level was picked to fit cycle_budget_ms.
+  double cycle_budget_ms = 0.0;   ///< The budget it was picked for; 0 when the level is fixed.
+  std::size_t objects_moved = 0;  ///< Stepped, posed or registered this cycle.
+  std::size_t object_pairs_tested = 0;  ///< Root sphere tests after the cycle's sweep.
   /// Of those, pairs neither of which changed since the last detection (the last cycle's,
   /// or one ahead of this cycle): their contacts kept, not queried again.
   std::size_t object_pairs_reused = 0;
@@ -197,8 +197,9 @@ class Scene {
   /// position; see CloudRegistration). A cloud that does not show the object leaves it
   /// where it was (`held`).
   /// @throw std::invalid_argument if the object is not tracked.
-  RegistrationReport registerCloud(std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m,
-                                   const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
+  RegistrationReport registerCloud(
+      std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m,
+      const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
 
   /// One cycle; its contacts are contacts() and its figures stats(). A pair of objects
   /// neither of which changed since the last detection (the last cycle's, or detectAhead()'s),
@@ -315,7 +316,7 @@ class Scene {
   BroadPhase broad_phase_;
   HierarchyQuery query_;
   std::optional<LevelBudget> level_budget_;  ///< Set in budget mode.
-  CycleCostSource cycle_cost_source_;         ///< Empty: the measured time.
+  CycleCostSource cycle_cost_source_;        ///< Empty: the measured time.
   LevelCosts detection_costs_;
   std::vector<SceneContact> contacts_;
   std::vector<ContactRun> contact_runs_;  ///< The pairs of contacts_, in its order.

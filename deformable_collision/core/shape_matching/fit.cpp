@@ -29,10 +29,9 @@ void invertFeatureMoment(const Eigen::Matrix<double, K, K>& moment, double radiu
     // cluster radius keeps the eigenvalue cut-off meaningful from 1e-4 m to 1e4 m.
     const double s = radius_m > 0.0 ? radius_m : 1.0;
     Eigen::Matrix<double, 9, 1> unscale;
-    unscale << 1 / s, 1 / s, 1 / s, 1 / (s * s), 1 / (s * s), 1 / (s * s), 1 / (s * s),
-        1 / (s * s), 1 / (s * s);
-    const Eigen::Matrix<double, 9, 9> scaled =
-        unscale.asDiagonal() * moment * unscale.asDiagonal();
+    unscale << 1 / s, 1 / s, 1 / s, 1 / (s * s), 1 / (s * s), 1 / (s * s), 1 / (s * s), 1 / (s * s),
+        1 / (s * s);
+    const Eigen::Matrix<double, 9, 9> scaled = unscale.asDiagonal() * moment * unscale.asDiagonal();
     const auto result = pseudoInverseSymmetric<9>(scaled);
     inverse = unscale.asDiagonal() * result.inverse * unscale.asDiagonal();
     completion = s * result.null_projector.topRows<3>() * unscale.asDiagonal();
@@ -126,9 +125,8 @@ ObservedMoments<K> observedMoments(const Cluster& cluster, double point_mass_kg,
 /// inverted fit then yields a proper, bounded goal that varies continuously with the
 /// points. Dividing by cbrt(det A) instead would let an overshooting object pass through
 /// flat into inversion, where the goal jumps and feeds energy in.
-Eigen::Matrix3d linearGoalTransform(const Eigen::Matrix3d& fit,
-                                    const Eigen::Quaterniond& rotation, double beta,
-                                    bool preserve_volume) {
+Eigen::Matrix3d linearGoalTransform(const Eigen::Matrix3d& fit, const Eigen::Quaterniond& rotation,
+                                    double beta, bool preserve_volume) {
   const Eigen::Matrix3d r = rotation.toRotationMatrix();
   if (!preserve_volume) return beta * fit + (1.0 - beta) * r;
   // R rotates A_pq = A A_qq; the stretch of A itself needs A's own polar rotation, which is
@@ -183,12 +181,15 @@ void precomputeMoments(Cluster& cluster, DeformationMode mode, double point_mass
   double second_moment = 0.0;
   Eigen::Matrix<double, 9, 1> feature_sum = Eigen::Matrix<double, 9, 1>::Zero();
   for (std::size_t j = 0; j < cluster.points.size(); ++j) {
-    feature_sum += slotWeightKg(cluster, j, point_mass_kg) * quadraticFeatures(cluster.rest_offsets[j]);
-    second_moment += slotWeightKg(cluster, j, point_mass_kg) * cluster.rest_offsets[j].squaredNorm();
+    feature_sum +=
+        slotWeightKg(cluster, j, point_mass_kg) * quadraticFeatures(cluster.rest_offsets[j]);
+    second_moment +=
+        slotWeightKg(cluster, j, point_mass_kg) * cluster.rest_offsets[j].squaredNorm();
   }
   cluster.mean_features = feature_sum / cluster.total_weight_kg;
   for (const auto& q : cluster.rest_offsets) {
-    const double norm = mode == DeformationMode::kQuadratic ? quadraticFeatures(q).norm() : q.norm();
+    const double norm =
+        mode == DeformationMode::kQuadratic ? quadraticFeatures(q).norm() : q.norm();
     cluster.max_feature_norm = std::max(cluster.max_feature_norm, norm);
   }
   if (mode == DeformationMode::kLinear) {
@@ -212,9 +213,9 @@ void registerCluster(const Cluster& cluster, const ClusterSums& sums,
       mass * shift * cluster.mean_features.template head<K>().transpose();
   extractRotation(moment_pq.template leftCols<3>(), deformation.rotation);
   deformation.center_of_mass = sums.reference + shift;
-  const Eigen::Matrix<double, 3, K> transform = fittedTransform<Mode, K>(
-      moment_pq, cluster.moment_inverse, cluster.null_completion,
-      deformation.rotation.toRotationMatrix());
+  const Eigen::Matrix<double, 3, K> transform =
+      fittedTransform<Mode, K>(moment_pq, cluster.moment_inverse, cluster.null_completion,
+                               deformation.rotation.toRotationMatrix());
   deformation.transform.setZero();
   deformation.transform.template leftCols<K>() = transform;
   deformation.translation =
@@ -233,8 +234,8 @@ void registerObservedSubset(const Cluster& cluster, double point_mass_kg,
                             const ClusterDeformation& fresh, double rebase_distance_m,
                             ClusterDeformation& deformation) {
   constexpr int K = kFeatureCount<Mode>;
-  ObservedMean<K> mean = observedMean<K>(cluster, point_mass_kg, positions, observed,
-                                         deformation.center_of_mass);
+  ObservedMean<K> mean =
+      observedMean<K>(cluster, point_mass_kg, positions, observed, deformation.center_of_mass);
   if (!(mean.mass > 0.0)) {
     const bool finite = deformation.transform.allFinite() && deformation.translation.allFinite() &&
                         deformation.rotation.coeffs().allFinite();
@@ -288,8 +289,8 @@ void measureFitResiduals(const std::vector<Cluster>& clusters,
                          const std::vector<Eigen::Vector3d>& positions, VectorWidth width,
                          std::vector<ClusterDeformation>& deformations) {
   for (std::size_t k = 0; k < clusters.size(); ++k) {
-    deformations[k].goal_deviation_bound_m = fitResidual<kFeatureCount<Mode>>(
-        clusters[k], deformations[k], positions, width);
+    deformations[k].goal_deviation_bound_m =
+        fitResidual<kFeatureCount<Mode>>(clusters[k], deformations[k], positions, width);
   }
 }
 

@@ -18,8 +18,8 @@ Moments<K> accumulate(const Cluster& cluster, std::size_t begin, std::size_t end
     j = accumulateAvx512<K, Terms>(cluster, begin, end, weights, positions.data(),
                                    velocities.data(), reference, sums);
   } else if (width == VectorWidth::kAvx2) {
-    j = accumulateAvx2<K, Terms>(cluster, begin, end, weights, positions.data(),
-                                 velocities.data(), reference, sums);
+    j = accumulateAvx2<K, Terms>(cluster, begin, end, weights, positions.data(), velocities.data(),
+                                 reference, sums);
   }
 #endif
   // The wide vectors took whole blocks of eight, so slot j + n goes to part n.
@@ -74,19 +74,19 @@ ClusterSums clusterSums(const Cluster& cluster, double point_mass_kg,
 }
 
 // The sums for every feature count and set of terms the body uses.
-#define DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, TERMS)                               \
-  template Moments<K> accumulate<K, MomentTerms::TERMS>(                                       \
-      const Cluster&, std::size_t, std::size_t, const double*,                                  \
-      const std::vector<Eigen::Vector3d>&, const std::vector<Eigen::Vector3d>&,                 \
+#define DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, TERMS)                \
+  template Moments<K> accumulate<K, MomentTerms::TERMS>(                        \
+      const Cluster&, std::size_t, std::size_t, const double*,                  \
+      const std::vector<Eigen::Vector3d>&, const std::vector<Eigen::Vector3d>&, \
       const Eigen::Vector3d&, VectorWidth);
-#define DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, TERMS)                             \
-  template ClusterSums clusterSums<K, MomentTerms::TERMS>(                                     \
-      const Cluster&, double, const std::vector<Eigen::Vector3d>&,                              \
+#define DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, TERMS) \
+  template ClusterSums clusterSums<K, MomentTerms::TERMS>(         \
+      const Cluster&, double, const std::vector<Eigen::Vector3d>&, \
       const std::vector<Eigen::Vector3d>&, const Eigen::Vector3d&, VectorWidth);
-#define DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(K)                                          \
-  DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, kMomentum)                                  \
-  DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, kMomentumAndSpin)                           \
-  DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, kMomentumAndSpin)                         \
+#define DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(K)                  \
+  DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, kMomentum)          \
+  DEFORMABLE_COLLISION_SHAPE_MATCHING_ACCUMULATE(K, kMomentumAndSpin)   \
+  DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, kMomentumAndSpin) \
   DEFORMABLE_COLLISION_SHAPE_MATCHING_CLUSTER_SUMS(K, kAtRest)
 DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(3)
 DEFORMABLE_COLLISION_SHAPE_MATCHING_MOMENTS(9)

@@ -7,9 +7,9 @@
 #include <utility>
 
 #include "deformable_collision/core/shape_matching/clustering.h"
-#include "deformable_collision/core/shape_matching/fit.h"
 #include "deformable_collision/core/shape_matching/detail/kernels.h"
 #include "deformable_collision/core/shape_matching/detail/wide.h"
+#include "deformable_collision/core/shape_matching/fit.h"
 
 namespace deformable_collision {
 namespace {
@@ -64,9 +64,9 @@ void validate(const std::vector<Eigen::Vector3d>& rest_points, const ShapeMatchi
   // A mode outside the enum (a cast of another number) would fit nothing, and the spheres
   // built on its fits would not enclose the points.
   if (!parseDeformationMode(toString(c.mode))) {
-    throw std::invalid_argument("ShapeMatchingConfig.mode = " +
-                                std::to_string(static_cast<int>(c.mode)) + " must be " +
-                                enumNameList(kDeformationModeNames));
+    throw std::invalid_argument(
+        "ShapeMatchingConfig.mode = " + std::to_string(static_cast<int>(c.mode)) + " must be " +
+        enumNameList(kDeformationModeNames));
   }
   const auto in_unit_interval = [](double v) { return v >= 0.0 && v <= 1.0; };
   if (!(c.mass_kg > 0.0) || !std::isfinite(c.mass_kg)) {
@@ -149,13 +149,11 @@ void indexPointSlots(const std::vector<Cluster>& clusters, std::size_t points,
 }  // namespace
 
 ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
-                                     const ShapeMatchingConfig& config,
-                                     VectorWidth vectors)
+                                     const ShapeMatchingConfig& config, VectorWidth vectors)
     : config_(config) {
   validate(rest_points, config);
-  vector_width_ = rest_points.size() <= detail::kMostWidePoints
-                      ? std::min(vectors, widestVectors())
-                      : VectorWidth::kPortable;
+  vector_width_ = rest_points.size() <= detail::kMostWidePoints ? std::min(vectors, widestVectors())
+                                                                : VectorWidth::kPortable;
   const std::size_t n = rest_points.size();
   point_mass_kg_ = config.mass_kg / static_cast<double>(n);
   auto rest = std::make_shared<RestShape>();
@@ -174,9 +172,8 @@ ShapeMatchingBody::ShapeMatchingBody(std::vector<Eigen::Vector3d> rest_points,
     if (rest->membership_counts[i] > 1) rest->shared_points.push_back(i);
   }
   for (const auto& members : memberships) {
-    rest->clusters.push_back(
-        makeCluster(members, rest->membership_counts, rest->positions, point_mass_kg_,
-                    config.mode));
+    rest->clusters.push_back(makeCluster(members, rest->membership_counts, rest->positions,
+                                         point_mass_kg_, config.mode));
   }
   indexPointSlots(rest->clusters, n, rest->point_slot_offsets, rest->point_slots);
   rest_ = std::move(rest);
@@ -226,10 +223,10 @@ void ShapeMatchingBody::takeTrackedState(std::vector<Eigen::Vector3d>& positions
                                          const TrackedState& state) {
   if (positions.size() != positions_.size() || state.sums.size() != rest_->clusters.size() ||
       state.deformations.size() != rest_->clusters.size()) {
-    throw std::invalid_argument(
-        "tracked state of " + std::to_string(positions.size()) + " points and " +
-        std::to_string(state.deformations.size()) + " clusters, the body has " +
-        std::to_string(positions_.size()) + " and " + std::to_string(rest_->clusters.size()));
+    throw std::invalid_argument("tracked state of " + std::to_string(positions.size()) +
+                                " points and " + std::to_string(state.deformations.size()) +
+                                " clusters, the body has " + std::to_string(positions_.size()) +
+                                " and " + std::to_string(rest_->clusters.size()));
   }
   // As track() does: a waiting move is made before the points are replaced.
   makeDeferredMove();

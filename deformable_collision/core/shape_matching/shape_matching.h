@@ -30,10 +30,11 @@ inline const char* toString(DeformationMode mode) { return enumName(kDeformation
 /// Shape-matching parameters of one object. Units are SI and named in the field.
 struct ShapeMatchingConfig {
   DeformationMode mode = DeformationMode::kLinear;
-  int clusters = 1;                    ///< Number of shape-matching clusters, in [1, points].
-  double cluster_overlap_ratio = 0.1;  ///< Seam shared by neighbouring clusters, see partitionIntoClusters.
-  double stiffness = 0.5;              ///< alpha in [0, 1]: fraction of the way to the goal per step.
-  double beta = 0.5;                   ///< [0, 1]: blend of the fitted transform with its rotation.
+  int clusters = 1;  ///< Number of shape-matching clusters, in [1, points].
+  double cluster_overlap_ratio =
+      0.1;                 ///< Seam shared by neighbouring clusters, see partitionIntoClusters.
+  double stiffness = 0.5;  ///< alpha in [0, 1]: fraction of the way to the goal per step.
+  double beta = 0.5;       ///< [0, 1]: blend of the fitted transform with its rotation.
   /// [0, 1]: fraction of the velocity relative to the object's rigid motion removed per
   /// step (momentum is conserved). Volume preservation is not a conservative force and
   /// needs about 0.1 to keep energy bounded; the other goals are stable undamped.
@@ -41,7 +42,7 @@ struct ShapeMatchingConfig {
   /// Linear mode: normalise the fitted A to unit determinant (Mueller et al. 2005).
   /// Off, the goal force derives from a potential and the undamped scheme keeps energy bounded.
   bool preserve_volume = true;
-  double mass_kg = 1.0;                ///< Total object mass (> 0), split equally among its points.
+  double mass_kg = 1.0;  ///< Total object mass (> 0), split equally among its points.
 };
 
 /// Rest-shape data of one cluster, fixed at construction.
@@ -95,7 +96,7 @@ struct ClusterDeformation {
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();     ///< x_cm - transform * mean_features.
   /// [A Q M] of the fit; R alone for a rigid cluster.
   Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();                 ///< R.
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  ///< R.
   /// At least the largest |transform * q~_i + translation - x_i| over the cluster's points:
   /// the fit's residual d (docs/design.md, erratum 3), measured by step, track and
   /// setPositions, and grown by displacePoints and moveRigidly so that it stays a bound.
@@ -107,11 +108,12 @@ struct ClusterDeformation {
 /// and the damping need. Weights are the cluster's shares of the point masses.
 struct ClusterSums {
   Eigen::Vector3d reference = Eigen::Vector3d::Zero();
-  Eigen::Vector3d offset = Eigen::Vector3d::Zero();                         ///< sum w (x - ref)
-  Eigen::Matrix<double, 3, 9> offset_features = Eigen::Matrix<double, 3, 9>::Zero();  ///< sum w (x - ref) q~^T
-  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();                       ///< sum w v
-  Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();               ///< sum w (x - ref) x v
-  Eigen::Matrix3d second_moment = Eigen::Matrix3d::Zero();                  ///< sum w (x - ref)(x - ref)^T
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();  ///< sum w (x - ref)
+  Eigen::Matrix<double, 3, 9> offset_features =
+      Eigen::Matrix<double, 3, 9>::Zero();                     ///< sum w (x - ref) q~^T
+  Eigen::Vector3d momentum = Eigen::Vector3d::Zero();          ///< sum w v
+  Eigen::Vector3d angular_momentum = Eigen::Vector3d::Zero();  ///< sum w (x - ref) x v
+  Eigen::Matrix3d second_moment = Eigen::Matrix3d::Zero();     ///< sum w (x - ref)(x - ref)^T
 };
 
 /// What tracking a cloud leaves in a body (ShapeMatchingBody::track) besides its points: its
@@ -370,10 +372,10 @@ class ShapeMatchingBody {
   std::vector<DisplacementMark> displacement_marks_;  ///< One per point.
   std::uint32_t displacement_pass_ = 0;
   std::vector<PointDisplacement> merged_displacements_;  ///< Scratch: each point listed once.
-  std::vector<Eigen::Vector3d> goal_sums_;       ///< Scratch for shared points' goals.
+  std::vector<Eigen::Vector3d> goal_sums_;               ///< Scratch for shared points' goals.
   std::vector<ClusterSums> cluster_sums_;  ///< Of the current positions and velocities.
   std::vector<Eigen::Matrix<double, 3, 9>> goal_transforms_;  ///< Scratch of one step.
-  std::vector<Eigen::Vector3d> goal_translations_;             ///< Scratch of one step.
+  std::vector<Eigen::Vector3d> goal_translations_;            ///< Scratch of one step.
 };
 
 /// Quadratic features q~ = (qx, qy, qz, qx^2, qy^2, qz^2, qx qy, qy qz, qz qx).

@@ -7,9 +7,9 @@
 #include <string>
 
 #include "deformable_collision/core/common/linear_algebra.h"
-#include "deformable_collision/core/shape_matching/fit.h"
 #include "deformable_collision/core/shape_matching/detail/kernels.h"
 #include "deformable_collision/core/shape_matching/detail/wide.h"
+#include "deformable_collision/core/shape_matching/fit.h"
 
 namespace deformable_collision {
 namespace {
@@ -62,9 +62,9 @@ RigidMotion objectRigidMotion(const std::vector<Cluster>& clusters,
     const Eigen::Vector3d arm = deformations[k].center_of_mass - object.center;
     angular_momentum +=
         sums.angular_momentum - cluster_mass * shift.cross(velocity) + arm.cross(sums.momentum);
-    inertia += second.trace() * Eigen::Matrix3d::Identity() - second +
-               cluster_mass * (arm.squaredNorm() * Eigen::Matrix3d::Identity() -
-                               arm * arm.transpose());
+    inertia +=
+        second.trace() * Eigen::Matrix3d::Identity() - second +
+        cluster_mass * (arm.squaredNorm() * Eigen::Matrix3d::Identity() - arm * arm.transpose());
   }
   object.spin = pseudoInverseSymmetric<3>(inertia).inverse * angular_momentum;
   return object;
@@ -262,8 +262,7 @@ void ShapeMatchingBody::moveRigidly(const Eigen::Vector3d& offset_m,
                                     const Eigen::Vector3d& spin_change_radps,
                                     const Eigen::Vector3d& center_m) {
   if (!offset_m.allFinite()) throw std::invalid_argument("translation is not finite");
-  if (!velocity_change_mps.allFinite() || !spin_change_radps.allFinite() ||
-      !center_m.allFinite()) {
+  if (!velocity_change_mps.allFinite() || !spin_change_radps.allFinite() || !center_m.allFinite()) {
     throw std::invalid_argument("velocity change, spin or centre is not finite");
   }
   makeDeferredMove();

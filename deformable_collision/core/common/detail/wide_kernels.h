@@ -14,10 +14,9 @@
 #define DEFORMABLE_COLLISION_BEGIN_WIDE_KERNELS \
   _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Wuninitialized\"")
 #else
-#define DEFORMABLE_COLLISION_BEGIN_WIDE_KERNELS                    \
-  _Pragma("GCC diagnostic push")                                   \
-      _Pragma("GCC diagnostic ignored \"-Wuninitialized\"")        \
-          _Pragma("GCC diagnostic ignored \"-Wmaybe-uninitialized\"")
+#define DEFORMABLE_COLLISION_BEGIN_WIDE_KERNELS                                        \
+  _Pragma("GCC diagnostic push") _Pragma("GCC diagnostic ignored \"-Wuninitialized\"") \
+      _Pragma("GCC diagnostic ignored \"-Wmaybe-uninitialized\"")
 #endif
 #define DEFORMABLE_COLLISION_END_WIDE_KERNELS _Pragma("GCC diagnostic pop")
 
@@ -33,7 +32,8 @@ __attribute__((target("avx512f"))) inline __m512d squaredDistancesAvx512(double 
   const __m512d dx = _mm512_sub_pd(_mm512_set1_pd(x), xs);
   const __m512d dy = _mm512_sub_pd(_mm512_set1_pd(y), ys);
   const __m512d dz = _mm512_sub_pd(_mm512_set1_pd(z), zs);
-  return _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+  return _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)),
+                       _mm512_mul_pd(dz, dz));
 }
 
 /// The lanes of the up to eight values from `offset` on of `count`.

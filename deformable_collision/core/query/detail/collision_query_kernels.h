@@ -34,10 +34,12 @@ double nearestSquaredDistance(const double* xs, const double* ys, const double* 
     const __m128d dx = _mm_sub_pd(px, _mm_loadu_pd(xs + t));
     const __m128d dy = _mm_sub_pd(py, _mm_loadu_pd(ys + t));
     const __m128d dz = _mm_sub_pd(pz, _mm_loadu_pd(zs + t));
-    const __m128d squared = _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)), _mm_mul_pd(dz, dz));
+    const __m128d squared =
+        _mm_add_pd(_mm_add_pd(_mm_mul_pd(dx, dx), _mm_mul_pd(dy, dy)), _mm_mul_pd(dz, dz));
     pair_nearest = _mm_min_pd(pair_nearest, squared);
   }
-  nearest = std::min(_mm_cvtsd_f64(pair_nearest), _mm_cvtsd_f64(_mm_unpackhi_pd(pair_nearest, pair_nearest)));
+  nearest = std::min(_mm_cvtsd_f64(pair_nearest),
+                     _mm_cvtsd_f64(_mm_unpackhi_pd(pair_nearest, pair_nearest)));
 #endif
   for (; t < count; ++t) {
     const double dx = x - xs[t], dy = y - ys[t], dz = z - zs[t];
@@ -100,12 +102,13 @@ __attribute__((target("avx512f"))) inline bool closestPairOfEightAvx512(
       // Rows past a's points repeat its last one, which cannot come first or closer; a
       // select, not a branch per row count (leaves of 7 and 8 points alternate).
       const std::uint32_t s = first_row + std::min(r, rows - 1);
-      squared[r] = _mm512_mask_mov_pd(infinity, lanes,
-                                      squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z));
+      squared[r] =
+          _mm512_mask_mov_pd(infinity, lanes, squaredDistancesAvx512(ax[s], ay[s], az[s], x, y, z));
     }
     const __m512d least_of_rows = _mm512_min_pd(
         _mm512_min_pd(_mm512_min_pd(squared[0], squared[1]), _mm512_min_pd(squared[2], squared[3])),
-        _mm512_min_pd(_mm512_min_pd(squared[4], squared[5]), _mm512_min_pd(squared[6], squared[7])));
+        _mm512_min_pd(_mm512_min_pd(squared[4], squared[5]),
+                      _mm512_min_pd(squared[6], squared[7])));
     // Most leaf pairs in reach have no pair close enough: they end on one comparison, before
     // the rows' least is reduced across lanes.
     if (_mm512_cmp_pd_mask(least_of_rows, _mm512_set1_pd(below_squared), _CMP_LT_OQ) == 0) {
@@ -117,9 +120,9 @@ __attribute__((target("avx512f"))) inline bool closestPairOfEightAvx512(
     // (a repeated row's bits come after the same bits of the row it repeats).
     std::uint64_t at_least = 0;
     for (std::uint32_t r = 0; r < 8; ++r) {
-      at_least |= static_cast<std::uint64_t>(
-                      _mm512_mask_cmp_pd_mask(lanes, squared[r], target, _CMP_EQ_OQ))
-                  << (8 * r);
+      at_least |=
+          static_cast<std::uint64_t>(_mm512_mask_cmp_pd_mask(lanes, squared[r], target, _CMP_EQ_OQ))
+          << (8 * r);
     }
     const auto first = static_cast<std::uint32_t>(__builtin_ctzll(at_least));
     below_squared = least;
@@ -155,9 +158,11 @@ __attribute__((target("avx512f"))) void firstPairAtAvx512(
 }
 
 /// reachMask, eight spheres per instruction.
-__attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(
-    double x, double y, double z, double reach_m, const double* xs, const double* ys,
-    const double* zs, const double* radii, std::uint32_t count) {
+__attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(double x, double y, double z,
+                                                                 double reach_m, const double* xs,
+                                                                 const double* ys, const double* zs,
+                                                                 const double* radii,
+                                                                 std::uint32_t count) {
   const __mmask8 lanes = lanesFrom(0, count);
   const __m512d squared =
       squaredDistancesAvx512(x, y, z, _mm512_maskz_loadu_pd(lanes, xs),
@@ -168,7 +173,7 @@ __attribute__((target("avx512f"))) std::uint32_t reachMaskAvx512(
 
 /// The lanes of the up to four values from `offset` on of `count`, as a mask of whole lanes.
 __attribute__((target("avx2"))) inline __m256i lanesFromAvx2(std::uint32_t offset,
-                                                            std::uint32_t count) {
+                                                             std::uint32_t count) {
   const __m256i lane = _mm256_add_epi64(_mm256_set1_epi64x(offset), _mm256_set_epi64x(3, 2, 1, 0));
   return _mm256_cmpgt_epi64(_mm256_set1_epi64x(count), lane);
 }
@@ -176,26 +181,28 @@ __attribute__((target("avx2"))) inline __m256i lanesFromAvx2(std::uint32_t offse
 /// Squared distances from the point (x, y, z), in every lane, to four points given by their
 /// coordinates, summed as the scalar code sums them, so both give the same bits.
 __attribute__((target("avx2"))) inline __m256d squaredDistancesAvx2(__m256d x, __m256d y, __m256d z,
-                                                                   __m256d xs, __m256d ys,
-                                                                   __m256d zs) {
+                                                                    __m256d xs, __m256d ys,
+                                                                    __m256d zs) {
   const __m256d dx = _mm256_sub_pd(x, xs);
   const __m256d dy = _mm256_sub_pd(y, ys);
   const __m256d dz = _mm256_sub_pd(z, zs);
-  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)), _mm256_mul_pd(dz, dz));
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dx, dx), _mm256_mul_pd(dy, dy)),
+                       _mm256_mul_pd(dz, dz));
 }
 
 /// The least of the four values.
 __attribute__((target("avx2"))) inline double leastOfAvx2(__m256d values) {
-  const __m128d halves = _mm_min_pd(_mm256_castpd256_pd128(values), _mm256_extractf128_pd(values, 1));
+  const __m128d halves =
+      _mm_min_pd(_mm256_castpd256_pd128(values), _mm256_extractf128_pd(values, 1));
   return _mm_cvtsd_f64(_mm_min_sd(halves, _mm_unpackhi_pd(halves, halves)));
 }
 
 /// Up to eight points as two halves of four; lanes past `count` hold an infinite x, so that
 /// their distances are infinite, never least.
 __attribute__((target("avx2"))) inline void loadEightAvx2(const double* xs, const double* ys,
-                                                         const double* zs, std::uint32_t count,
-                                                         __m256d (&x)[2], __m256d (&y)[2],
-                                                         __m256d (&z)[2]) {
+                                                          const double* zs, std::uint32_t count,
+                                                          __m256d (&x)[2], __m256d (&y)[2],
+                                                          __m256d (&z)[2]) {
   const __m256d infinity = _mm256_set1_pd(std::numeric_limits<double>::infinity());
 #pragma GCC unroll 2
   for (int h = 0; h < 2; ++h) {
@@ -220,7 +227,7 @@ __attribute__((target("avx2"))) inline void squaredDistancesToEightAvx2(
 
 /// The lanes of the eight distances (low, then high) equal to `value`, one bit each.
 __attribute__((target("avx2"))) inline std::uint32_t lanesAtAvx2(__m256d low, __m256d high,
-                                                                double value) {
+                                                                 double value) {
   const __m256d target = _mm256_set1_pd(value);
   return static_cast<std::uint32_t>(_mm256_movemask_pd(_mm256_cmp_pd(low, target, _CMP_EQ_OQ)) |
                                     _mm256_movemask_pd(_mm256_cmp_pd(high, target, _CMP_EQ_OQ))
@@ -277,12 +284,14 @@ __attribute__((target("avx2"))) inline std::uint32_t reachMaskAvx2(
 #pragma GCC unroll 2
   for (std::uint32_t j = 0; j < count; j += 4) {
     const __m256i lanes = lanesFromAvx2(j, count);
-    const __m256d squared = squaredDistancesAvx2(px, py, pz, _mm256_maskload_pd(xs + j, lanes),
-                                                 _mm256_maskload_pd(ys + j, lanes),
-                                                 _mm256_maskload_pd(zs + j, lanes));
-    const __m256d reach = _mm256_add_pd(_mm256_maskload_pd(radii + j, lanes), _mm256_set1_pd(reach_m));
-    const __m256d within = _mm256_and_pd(_mm256_cmp_pd(squared, _mm256_mul_pd(reach, reach), _CMP_LT_OQ),
-                                         _mm256_castsi256_pd(lanes));
+    const __m256d squared =
+        squaredDistancesAvx2(px, py, pz, _mm256_maskload_pd(xs + j, lanes),
+                             _mm256_maskload_pd(ys + j, lanes), _mm256_maskload_pd(zs + j, lanes));
+    const __m256d reach =
+        _mm256_add_pd(_mm256_maskload_pd(radii + j, lanes), _mm256_set1_pd(reach_m));
+    const __m256d within =
+        _mm256_and_pd(_mm256_cmp_pd(squared, _mm256_mul_pd(reach, reach), _CMP_LT_OQ),
+                      _mm256_castsi256_pd(lanes));
     mask |= static_cast<std::uint32_t>(_mm256_movemask_pd(within)) << j;
   }
   return mask;

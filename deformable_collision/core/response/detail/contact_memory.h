@@ -14,7 +14,7 @@ struct ContactMemory {
   struct ContactSide {
     std::uint32_t partner = 0;
     Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< Away from the partner.
-    std::uint64_t cycle = 0;                             ///< Last cycle in contact.
+    std::uint64_t cycle = 0;                            ///< Last cycle in contact.
   };
 
   /// The side last seen for `partner`, or nullptr.

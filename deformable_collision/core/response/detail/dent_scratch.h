@@ -27,7 +27,7 @@ struct DentScratch {
   struct PendingDent {
     std::uint32_t node = 0;
     Eigen::Vector3d away = Eigen::Vector3d::UnitZ();  ///< Direction this object is pushed.
-    std::uint32_t partner = 0;                         ///< The object it touches.
+    std::uint32_t partner = 0;                        ///< The object it touches.
     /// Its contacts' depths in depths, a list from first_depth to last_depth.
     std::uint32_t first_depth = kNoDepth;
     std::uint32_t last_depth = kNoDepth;

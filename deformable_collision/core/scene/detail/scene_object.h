@@ -45,7 +45,7 @@ struct SceneObject {
   /// their points now, and a kinematic object's of its rest shape, which each pose moves.
   NodeSlabs slabs;
   NodeSlabs rest_slabs;
-  DentScratch dents;   ///< Dynamic objects.
+  DentScratch dents;  ///< Dynamic objects.
   ContactMemory contact_memory;
   /// Tracked objects fitted to unordered clouds: made on the first such cloud.
   std::optional<CloudRegistration> registration;

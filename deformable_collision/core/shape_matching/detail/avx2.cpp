@@ -29,8 +29,7 @@ __attribute__((target("avx2"))) inline __m256d crossComponent(int row, const __m
 }
 
 /// Four packed triples from `triples` on, split into their x, y and z: copies, no arithmetic.
-__attribute__((target("avx2"))) inline void splitTriples(const double* triples,
-                                                         __m256d (&xyz)[3]) {
+__attribute__((target("avx2"))) inline void splitTriples(const double* triples, __m256d (&xyz)[3]) {
   // In 128-bit halves: a = (x0 y0 | z0 x1), b = (y1 z1 | x2 y2), c = (z2 x3 | y3 z3).
   const __m256d a = _mm256_loadu_pd(triples);
   const __m256d b = _mm256_loadu_pd(triples + 4);
@@ -45,8 +44,8 @@ __attribute__((target("avx2"))) inline void splitTriples(const double* triples,
 
 /// The features of the cluster's four slots from `slot` on, each as featureArray gives it.
 template <int K>
-__attribute__((target("avx2"))) inline void wideFeatures(const Cluster& cluster,
-                                                         std::size_t slot, __m256d (&f)[K]) {
+__attribute__((target("avx2"))) inline void wideFeatures(const Cluster& cluster, std::size_t slot,
+                                                         __m256d (&f)[K]) {
   __m256d xyz[3];
   splitTriples(cluster.rest_offsets[slot].data(), xyz);
   for (int r = 0; r < 3; ++r) f[r] = xyz[r];
@@ -67,8 +66,8 @@ struct WideGoals {
   __m256d features[K];
   __m256d goal[3];
 
-  __attribute__((target("avx2"))) WideGoals(const GoalKernel<K>& kernel, const Cluster& cluster,
-                                             std::size_t slot) {
+  __attribute__((target("avx2")))
+  WideGoals(const GoalKernel<K>& kernel, const Cluster& cluster, std::size_t slot) {
     wideFeatures<K>(cluster, slot, features);
     for (int r = 0; r < 3; ++r) {
       __m256d g = _mm256_set1_pd(kernel.translation[r]);
@@ -86,7 +85,8 @@ __attribute__((target("avx2"))) inline void loadPoints(const Cluster& cluster, s
                                                        const double* coordinates,
                                                        __m256d (&xyz)[3]) {
   const double* p[kHalfLanes];
-  for (int n = 0; n < kHalfLanes; ++n) p[n] = coordinates + 3 * std::size_t{cluster.points[slot + n]};
+  for (int n = 0; n < kHalfLanes; ++n)
+    p[n] = coordinates + 3 * std::size_t{cluster.points[slot + n]};
   const __m256d xy02 =
       _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p[0])), _mm_loadu_pd(p[2]), 1);
   const __m256d xy13 =
@@ -97,8 +97,7 @@ __attribute__((target("avx2"))) inline void loadPoints(const Cluster& cluster, s
 }
 
 /// Writes four points' coordinates back to the cluster's points of slots [slot, slot + 4).
-__attribute__((target("avx2"))) inline void scatterPoints(const Cluster& cluster,
-                                                          std::size_t slot,
+__attribute__((target("avx2"))) inline void scatterPoints(const Cluster& cluster, std::size_t slot,
                                                           const __m256d (&xyz)[3],
                                                           double* coordinates) {
   alignas(32) double lanes[3][kHalfLanes];
@@ -155,8 +154,8 @@ struct WideMoments {
     }
     if constexpr (Terms != MomentTerms::kMomentum) {
       for (int e = 0; e < 6; ++e) {
-        second_moment[e][h] = _mm256_add_pd(second_moment[e][h],
-                                            _mm256_mul_pd(wp[kUpperRow[e]], p[kUpperColumn[e]]));
+        second_moment[e][h] =
+            _mm256_add_pd(second_moment[e][h], _mm256_mul_pd(wp[kUpperRow[e]], p[kUpperColumn[e]]));
       }
     }
   }
@@ -173,7 +172,8 @@ struct WideMoments {
           _mm256_storeu_pd(sums.offset_features[r][c] + part, offset_features[r][c][h]);
         }
       }
-      for (int e = 0; e < 6; ++e) _mm256_storeu_pd(sums.second_moment[e] + part, second_moment[e][h]);
+      for (int e = 0; e < 6; ++e)
+        _mm256_storeu_pd(sums.second_moment[e] + part, second_moment[e][h]);
     }
   }
 };
@@ -244,15 +244,15 @@ __attribute__((target("avx2"))) std::size_t moveExclusiveAvx2(
           d[r] = _mm256_sub_pd(x[r], _mm256_set1_pd(motion.object_center[r]));
         }
         for (int r = 0; r < 3; ++r) {
-          target[r] = _mm256_add_pd(_mm256_set1_pd(motion.object_velocity[r]),
-                                    crossComponent(r, spin, d));
+          target[r] =
+              _mm256_add_pd(_mm256_set1_pd(motion.object_velocity[r]), crossComponent(r, spin, d));
         }
       }
       __m256d p[3];
       for (int r = 0; r < 3; ++r) {
         if constexpr (Damped) {
-          v[r] = _mm256_add_pd(v[r], _mm256_mul_pd(_mm256_set1_pd(motion.damping),
-                                                   _mm256_sub_pd(target[r], v[r])));
+          v[r] = _mm256_add_pd(
+              v[r], _mm256_mul_pd(_mm256_set1_pd(motion.damping), _mm256_sub_pd(target[r], v[r])));
         }
         const __m256d pull =
             _mm256_mul_pd(_mm256_set1_pd(motion.pull), _mm256_sub_pd(wide.goal[r], x[r]));
@@ -272,8 +272,8 @@ __attribute__((target("avx2"))) std::size_t moveExclusiveAvx2(
 
 template <int K>
 __attribute__((target("avx2"))) std::size_t addSharedGoalsAvx2(const GoalKernel<K> kernel,
-                                                                const Cluster& cluster,
-                                                                Eigen::Vector3d* goal_sums) {
+                                                               const Cluster& cluster,
+                                                               Eigen::Vector3d* goal_sums) {
   double* sums = goal_sums->data();
   std::size_t slot = cluster.exclusive_count;
   for (; slot + kHalfLanes <= cluster.points.size(); slot += kHalfLanes) {
@@ -311,20 +311,19 @@ __attribute__((target("avx2"))) std::pair<double, std::size_t> largestSquaredGoa
 DEFORMABLE_COLLISION_END_WIDE_KERNELS
 
 // The kernels for every feature count, set of terms and flag the body uses.
-#define DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, TERMS)                                          \
-  template std::size_t accumulateAvx2<K, MomentTerms::TERMS>(                                  \
-      const Cluster&, std::size_t, std::size_t, const double*, const Eigen::Vector3d*,         \
+#define DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, TERMS)                                 \
+  template std::size_t accumulateAvx2<K, MomentTerms::TERMS>(                          \
+      const Cluster&, std::size_t, std::size_t, const double*, const Eigen::Vector3d*, \
       const Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);
-#define DEFORMABLE_COLLISION_AVX2_MOVE(K, DAMPED)                                               \
-  template std::size_t moveExclusiveAvx2<K, DAMPED>(const GoalKernel<K>, const Cluster&,       \
-                                                    const StepMotion, Eigen::Vector3d*,        \
-                                                    Eigen::Vector3d*, const Eigen::Vector3d,   \
-                                                    PartialMoments<K>&);
-#define DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(K)                                             \
-  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kMomentum)                                            \
-  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kMomentumAndSpin)                                     \
-  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kAtRest)                                              \
-  DEFORMABLE_COLLISION_AVX2_MOVE(K, false)                                                      \
+#define DEFORMABLE_COLLISION_AVX2_MOVE(K, DAMPED)                                                \
+  template std::size_t moveExclusiveAvx2<K, DAMPED>(                                             \
+      const GoalKernel<K>, const Cluster&, const StepMotion, Eigen::Vector3d*, Eigen::Vector3d*, \
+      const Eigen::Vector3d, PartialMoments<K>&);
+#define DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(K)         \
+  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kMomentum)        \
+  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kMomentumAndSpin) \
+  DEFORMABLE_COLLISION_AVX2_ACCUMULATE(K, kAtRest)          \
+  DEFORMABLE_COLLISION_AVX2_MOVE(K, false)                  \
   DEFORMABLE_COLLISION_AVX2_MOVE(K, true)
 DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(3)
 DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(9)
@@ -333,10 +332,12 @@ DEFORMABLE_COLLISION_AVX2_SHAPE_MATCHING(9)
 #undef DEFORMABLE_COLLISION_AVX2_ACCUMULATE
 template std::size_t addSharedGoalsAvx2<3>(const GoalKernel<3>, const Cluster&, Eigen::Vector3d*);
 template std::size_t addSharedGoalsAvx2<9>(const GoalKernel<9>, const Cluster&, Eigen::Vector3d*);
-template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx2<3>(
-    const GoalKernel<3>, const Cluster&, const Eigen::Vector3d*);
-template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx2<9>(
-    const GoalKernel<9>, const Cluster&, const Eigen::Vector3d*);
+template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx2<3>(const GoalKernel<3>,
+                                                                          const Cluster&,
+                                                                          const Eigen::Vector3d*);
+template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx2<9>(const GoalKernel<9>,
+                                                                          const Cluster&,
+                                                                          const Eigen::Vector3d*);
 
 }  // namespace deformable_collision::detail
 

@@ -199,7 +199,8 @@ template <int K>
 struct GoalKernel {
   double transform[3][K];
   double translation[3];
-  GoalKernel(const Eigen::Matrix<double, 3, 9>& transform_in, const Eigen::Vector3d& translation_in) {
+  GoalKernel(const Eigen::Matrix<double, 3, 9>& transform_in,
+             const Eigen::Vector3d& translation_in) {
     for (int r = 0; r < 3; ++r) {
       translation[r] = translation_in[r];
       for (int c = 0; c < K; ++c) transform[r][c] = transform_in(r, c);

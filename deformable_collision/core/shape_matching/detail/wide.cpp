@@ -64,8 +64,8 @@ struct WideGoals {
   __m512d features[K];
   __m512d goal[3];
 
-  __attribute__((target("avx512f"))) WideGoals(const GoalKernel<K>& kernel,
-                                                const Cluster& cluster, std::size_t slot) {
+  __attribute__((target("avx512f")))
+  WideGoals(const GoalKernel<K>& kernel, const Cluster& cluster, std::size_t slot) {
     point_offsets = pointOffsets(cluster, slot);
     wideFeatures<K>(cluster, slot, features);
     for (int r = 0; r < 3; ++r) {
@@ -98,7 +98,7 @@ struct WideMoments {
   /// PartialMoments::addLanes for eight slots, one per part.
   template <bool Weighted, MomentTerms Terms>
   __attribute__((target("avx512f"))) void add(__m512d w, const __m512d (&p)[3],
-                                               const __m512d (&v)[3], const __m512d (&f)[K]) {
+                                              const __m512d (&v)[3], const __m512d (&f)[K]) {
     __m512d wp[3];
     for (int r = 0; r < 3; ++r) {
       wp[r] = Weighted ? _mm512_mul_pd(w, p[r]) : p[r];
@@ -121,8 +121,8 @@ struct WideMoments {
     }
     if constexpr (Terms != MomentTerms::kMomentum) {
       for (int e = 0; e < 6; ++e) {
-        second_moment[e] = _mm512_add_pd(second_moment[e],
-                                         _mm512_mul_pd(wp[kUpperRow[e]], p[kUpperColumn[e]]));
+        second_moment[e] =
+            _mm512_add_pd(second_moment[e], _mm512_mul_pd(wp[kUpperRow[e]], p[kUpperColumn[e]]));
       }
     }
   }
@@ -200,8 +200,8 @@ __attribute__((target("avx512f"))) std::size_t moveExclusiveAvx512(
         d[r] = _mm512_sub_pd(x[r], _mm512_set1_pd(motion.object_center[r]));
       }
       for (int r = 0; r < 3; ++r) {
-        target[r] = _mm512_add_pd(_mm512_set1_pd(motion.object_velocity[r]),
-                                  crossComponent(r, spin, d));
+        target[r] =
+            _mm512_add_pd(_mm512_set1_pd(motion.object_velocity[r]), crossComponent(r, spin, d));
       }
     }
     __m512d p[3];
@@ -263,19 +263,19 @@ __attribute__((target("avx512f"))) std::pair<double, std::size_t> largestSquared
 DEFORMABLE_COLLISION_END_WIDE_KERNELS
 
 // The kernels for every feature count, set of terms and flag the body uses.
-#define DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, TERMS)                                          \
-  template std::size_t accumulateAvx512<K, MomentTerms::TERMS>(                                \
-      const Cluster&, std::size_t, std::size_t, const double*, const Eigen::Vector3d*,         \
+#define DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, TERMS)                                 \
+  template std::size_t accumulateAvx512<K, MomentTerms::TERMS>(                        \
+      const Cluster&, std::size_t, std::size_t, const double*, const Eigen::Vector3d*, \
       const Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);
-#define DEFORMABLE_COLLISION_WIDE_MOVE(K, DAMPED)                                               \
-  template std::size_t moveExclusiveAvx512<K, DAMPED>(                                         \
-      const GoalKernel<K>, const Cluster&, const StepMotion, Eigen::Vector3d*,                 \
-      Eigen::Vector3d*, const Eigen::Vector3d, PartialMoments<K>&);
-#define DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(K)                                             \
-  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kMomentum)                                            \
-  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kMomentumAndSpin)                                     \
-  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kAtRest)                                              \
-  DEFORMABLE_COLLISION_WIDE_MOVE(K, false)                                                      \
+#define DEFORMABLE_COLLISION_WIDE_MOVE(K, DAMPED)                                                \
+  template std::size_t moveExclusiveAvx512<K, DAMPED>(                                           \
+      const GoalKernel<K>, const Cluster&, const StepMotion, Eigen::Vector3d*, Eigen::Vector3d*, \
+      const Eigen::Vector3d, PartialMoments<K>&);
+#define DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(K)         \
+  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kMomentum)        \
+  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kMomentumAndSpin) \
+  DEFORMABLE_COLLISION_WIDE_ACCUMULATE(K, kAtRest)          \
+  DEFORMABLE_COLLISION_WIDE_MOVE(K, false)                  \
   DEFORMABLE_COLLISION_WIDE_MOVE(K, true)
 DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(3)
 DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(9)
@@ -284,10 +284,12 @@ DEFORMABLE_COLLISION_WIDE_SHAPE_MATCHING(9)
 #undef DEFORMABLE_COLLISION_WIDE_ACCUMULATE
 template std::size_t addSharedGoalsAvx512<3>(const GoalKernel<3>, const Cluster&, Eigen::Vector3d*);
 template std::size_t addSharedGoalsAvx512<9>(const GoalKernel<9>, const Cluster&, Eigen::Vector3d*);
-template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512<3>(
-    const GoalKernel<3>, const Cluster&, const Eigen::Vector3d*);
-template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512<9>(
-    const GoalKernel<9>, const Cluster&, const Eigen::Vector3d*);
+template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512<3>(const GoalKernel<3>,
+                                                                            const Cluster&,
+                                                                            const Eigen::Vector3d*);
+template std::pair<double, std::size_t> largestSquaredGoalDistanceAvx512<9>(const GoalKernel<9>,
+                                                                            const Cluster&,
+                                                                            const Eigen::Vector3d*);
 
 }  // namespace deformable_collision::detail
 

@@ -66,8 +66,8 @@ __attribute__((target("avx2"))) std::size_t moveExclusiveAvx2(
 /// addSharedGoalsAvx512 on four lanes.
 template <int K>
 __attribute__((target("avx2"))) std::size_t addSharedGoalsAvx2(const GoalKernel<K> kernel,
-                                                                const Cluster& cluster,
-                                                                Eigen::Vector3d* goal_sums);
+                                                               const Cluster& cluster,
+                                                               Eigen::Vector3d* goal_sums);
 
 /// largestSquaredGoalDistanceAvx512 on four lanes.
 template <int K>
