@@ -58,13 +58,12 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
     : node_handle_(node_handle),
       private_handle_(private_handle),
       config_(loadConfig(private_handle)),
-      started_(Clock::now()),
       scene_(config_.scene),
       slots_(config_.objects.size()),
-      readers_(config_.objects.size()),
       handoff_(cloudsStartingCycles(config_)),
       tf_listener_(tf_buffer_, node_handle),
       wake_(boost::make_shared<WakeUp>()),
+      reader_(config_, slots_, scene_, handoff_, tf_buffer_, [this] { wakeCycle(); }),
       taken_(config_.objects.size()),
       applied_(config_.objects.size()),
       cycle_period_(std::chrono::duration_cast<Clock::duration>(
@@ -111,12 +110,12 @@ void DeformableCollisionNode::connect() {
     // same manager) arrives as the publisher's shared pointer, never serialised.
     slot.subscriber = reader_handle.subscribe<sensor_msgs::PointCloud2>(
         slot.params.topic, 2,
-        boost::bind(&DeformableCollisionNode::onCloud, this, boost::placeholders::_1, i),
+        boost::bind(&CloudReader::onCloud, &reader_, boost::placeholders::_1, i),
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
   }
-  retry_timer_ =
-      reader_handle.createWallTimer(ros::WallDuration(1.0 / config_.rate_hz),
-                                    [this](const ros::WallTimerEvent&) { retryAwaitingClouds(); });
+  retry_timer_ = reader_handle.createWallTimer(
+      ros::WallDuration(1.0 / config_.rate_hz),
+      [this](const ros::WallTimerEvent&) { reader_.retryAwaitingClouds(); });
   set_level_service_ = cycle_private_handle.advertiseService(
       "set_level", &DeformableCollisionNode::onSetLevel, this);
   get_contacts_service_ = cycle_private_handle.advertiseService(
@@ -125,6 +124,11 @@ void DeformableCollisionNode::connect() {
     timer_ = cycle_handle.createTimer(ros::Duration(1.0 / config_.rate_hz),
                                       &DeformableCollisionNode::onTimer, this);
   }
+}
+
+// One wake-up at a time: the cycle clears the flag before it looks at the handoff.
+void DeformableCollisionNode::wakeCycle() {
+  if (!wake_pending_.exchange(true)) cycle_queue_.addCallback(wake_);
 }
 
 DeformableCollisionNode::~DeformableCollisionNode() {
@@ -207,7 +211,7 @@ void DeformableCollisionNode::applyTakenClouds(const std::vector<std::size_t>& o
     try {
       if (!applyCloud(slot, taken_[index])) continue;
     } catch (const std::exception& e) {
-      dropCloud(slot, ros::console::levels::Error, e.what());
+      reader_.dropCloud(slot, ros::console::levels::Error, e.what());
       continue;
     }
     AppliedCloud& applied = applied_[index];
@@ -385,10 +389,10 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
                                            std::optional<Clock::time_point> oldest_input,
                                            std::size_t points) {
   NodeOutputs::InputCounts counts;
-  counts.clouds_received = clouds_received_;
-  counts.clouds_rejected = clouds_rejected_;
+  counts.clouds_received = reader_.cloudsReceived();
+  counts.clouds_rejected = reader_.cloudsRejected();
   counts.clouds_coalesced = handoff_.coalesced() + clouds_superseded_;
-  counts.non_finite_points = non_finite_points_;
+  counts.non_finite_points = reader_.nonFinitePoints();
   outputs_.publishStats(scene_, header, times, oldest_input, points, counts,
                         [this](Stats& stats) { fillRegistrationStats(stats); });
 }

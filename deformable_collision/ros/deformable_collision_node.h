@@ -21,10 +21,12 @@
 #include "deformable_collision/Stats.h"
 #include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/ros/cloud_handoff.h"
+#include "deformable_collision/ros/cloud_reader.h"
 #include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/counted_publisher.h"
 #include "deformable_collision/ros/node_config.h"
 #include "deformable_collision/ros/node_outputs.h"
+#include "deformable_collision/ros/object_slot.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
 namespace deformable_collision {
@@ -33,17 +35,17 @@ namespace deformable_collision {
 /// runs the scene's cycle on a timer or on arriving clouds, and publishes what is
 /// subscribed. Two threads of its own, so that reading a cloud never delays a cycle:
 /// - the reader (reader_queue_, one spinner thread) runs the cloud subscriptions and the
-///   retries of clouds waiting for tf: it converts, transforms and checks each cloud, makes
-///   new objects and fits tracked ones to their clouds, and hands each to the cycle through
-///   handoff_. It alone touches readers_.
+///   retries of clouds waiting for tf: reader_ (CloudReader) converts, transforms and
+///   checks each cloud, makes new objects and fits tracked ones to their clouds, and hands
+///   each to the cycle through handoff_.
 /// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles, the
 ///   services and the outputs' connect and disconnect callbacks (CountedPublisher). It
 ///   alone touches scene_, the cycle members of slots_ (index, poses, model, registration,
-///   the deformed publisher's count), taken_ and outputs_.
-/// Between them: handoff_ (its own mutex), the atomics of slots_ and of the node (counters,
-/// the wake-up flag), and the drop reports (report_mutex_). tf_buffer_ is thread-safe and
-/// filled by the listener's own thread. Everything else is set in the constructor and only
-/// read afterwards.
+///   the deformed publisher's count), taken_ and outputs_ (NodeOutputs).
+/// Between them: handoff_ (its own mutex), the atomics of slots_, the reader's counters and
+/// drop reports (its own mutex), and the wake-up flag. tf_buffer_ is thread-safe and filled
+/// by the listener's own thread. Everything else is set in the constructor and only read
+/// afterwards.
 class DeformableCollisionNode {
  public:
   /// Loads and validates every parameter before subscribing to anything.
@@ -55,89 +57,6 @@ class DeformableCollisionNode {
  private:
   using Clock = std::chrono::steady_clock;
 
-  struct AwaitingCloud {
-    sensor_msgs::PointCloud2ConstPtr cloud;
-    Clock::time_point arrival;
-  };
-
-  struct ObjectSlot {
-    ObjectParams params;
-    ros::Subscriber subscriber;
-    CountedPublisher deformed;
-    /// Set by the cycle once the object is in the scene.
-    std::atomic<bool> exists{false};
-    /// Guarded by report_mutex_: the last report of a dropped cloud, and the drops since.
-    std::optional<Clock::time_point> last_report;
-    std::size_t drops_unreported = 0;
-    // The cycle's.
-    std::optional<std::size_t> index;            ///< In the scene, once a cloud set its rest shape.
-    std::optional<Eigen::Isometry3d> last_pose;  ///< Kinematic objects.
-    bool float64 = false;  ///< ~deformed/<object> in FLOAT64, like the last cloud.
-    /// on_cloud register: model_file's points in model_frame until tf places them, the last
-    /// cloud's registration, and the clouds held since start and since the last report.
-    std::vector<Eigen::Vector3d> model_points;
-    RegistrationReport registration;
-    std::uint64_t clouds_held = 0;
-    std::optional<Clock::time_point> last_held_report;
-    std::size_t held_unreported = 0;
-  };
-
-  /// The reader's state of one object.
-  struct CloudReader {
-    ReadCloud cloud;  ///< The cloud being read; handed over by a swap.
-    /// Clouds whose transform was not there yet, oldest first, retried in that order on
-    /// the retry timer and on each new cloud, each until tf_wait_s after its arrival.
-    std::deque<AwaitingCloud> awaiting_transform;
-    /// on_cloud track, once the reader has made the object from its first cloud: the
-    /// object's fitter, that cloud's size and the indices of its finite points (the
-    /// object's points).
-    std::optional<TrackedFitter> fitter;
-    std::size_t tracked_cloud_size = 0;
-    std::vector<std::uint32_t> tracked_indices;
-  };
-
-  enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
-  enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
-
-  // The reader (node_cloud_reader.cpp).
-  void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
-  /// Whether tf may still be learning its frames, so that an unknown frame may yet come.
-  bool tfFilling() const;
-  /// The frame a cloud of this object is placed in: its follow_frame or the fixed frame.
-  const std::string& targetFrame(const ObjectSlot& slot) const;
-  /// Why a cloud cannot ever be placed because tf knows no such frame; empty if it can be.
-  std::string unknownFrameProblem(const ObjectSlot& slot, const std::string& frame) const;
-  /// Tries the clouds that wait for their transform, in order; drops those that waited
-  /// too long.
-  void retryAwaitingClouds();
-  void retryAwaitingClouds(std::size_t slot, Clock::time_point now);
-  /// False if the cloud waits for its transform.
-  bool processCloud(std::size_t slot, const sensor_msgs::PointCloud2& cloud,
-                    Clock::time_point arrival, bool last_try);
-  /// Counts a dropped cloud and says why, at most once per 5 s per object. Either thread.
-  void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
-  /// `last_try`: a missing transform refuses the cloud instead of making it wait.
-  CloudOutcome handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
-                           Clock::time_point arrival, bool last_try);
-  /// Reads the cloud into `points`; its error also says why the object cannot take it
-  /// (empty, or a tracked object's cloud of another size than `tracked_size`, its first's,
-  /// or 0 before that).
-  CloudReadResult readObjectCloud(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
-                                  std::size_t tracked_size,
-                                  std::vector<Eigen::Vector3d>& points) const;
-  /// A tracked object's first cloud, made into the object in `read.prepared`: the reader
-  /// then fits the clouds after it.
-  static void startTracking(CloudReader& reader, ReadCloud& read);
-  /// Fits a tracked object's cloud into `read.fit`, its fitted points into `read.points`,
-  /// for the cycle to take over.
-  static void fitTrackedCloud(CloudReader& reader, ReadCloud& read);
-  /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
-  /// it never will (no frame, an unknown frame once tf has filled, not finite).
-  TransformOutcome transformPoints(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
-                                   bool last_try, ReadCloud& read, std::string& problem) const;
-  /// Hands a read cloud to the cycle, waking it if the cloud may start one.
-  void handOver(std::size_t slot, ReadCloud& read);
-
   // The cycle (deformable_collision_node.cpp, node_registration.cpp).
   /// Applies each of `objects`' clouds in taken_ to its object and notes it for the next
   /// cycle's stamp and latencies.
@@ -148,14 +67,14 @@ class DeformableCollisionNode {
   bool applyCloud(ObjectSlot& slot, ReadCloud& cloud);
   /// Puts the object the reader made from a cloud into the scene.
   void addObject(ObjectSlot& slot, ReadCloud& cloud);
-  /// Why a tracked object refuses a cloud of `points` points.
-  static std::string trackedSizeProblem(std::size_t points, std::size_t first_points);
   /// Points far apart compared with the contact distance let other clouds through: say so.
   void warnIfPorous(const std::string& name, const std::vector<Eigen::Vector3d>& points) const;
   /// Reads every model_file, so that a bad one stops the node at start, naming the object.
   /// @throw std::invalid_argument
   /// Advertises the outputs and services, subscribes to the clouds, starts the timers.
   void connect();
+  /// Wakes the cycle for a cloud that may start one (the reader's hand-over).
+  void wakeCycle();
   void loadModels();
   /// Creates the object of a slot from its model file at model_frame's latest pose, once tf
   /// has it; whether the object exists.
@@ -200,10 +119,8 @@ class DeformableCollisionNode {
   ros::NodeHandle node_handle_;
   ros::NodeHandle private_handle_;
   NodeConfig config_;
-  Clock::time_point started_;
   Scene scene_;
   std::vector<ObjectSlot> slots_;
-  std::vector<CloudReader> readers_;
   CloudHandoff handoff_;
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
@@ -213,15 +130,12 @@ class DeformableCollisionNode {
   ros::Timer timer_;
   ros::WallTimer retry_timer_;
 
-  std::mutex report_mutex_;
-  std::atomic<std::uint64_t> clouds_received_{0};
-  std::atomic<std::uint64_t> clouds_rejected_{0};
-  std::atomic<std::uint64_t> non_finite_points_{0};
   /// Set by the reader when it queues wake_ on cycle_queue_, cleared by the cycle before it
   /// looks at handoff_: one wake-up waits at most, and none is lost.
   std::atomic<bool> wake_pending_{false};
   std::atomic<bool> stopping_{false};
   ros::CallbackInterfacePtr wake_;
+  CloudReader reader_;
 
   // The cycle's.
   std::vector<ReadCloud> taken_;

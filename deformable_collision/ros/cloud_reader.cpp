@@ -1,10 +1,10 @@
-// The node's reader thread: each cloud is converted, transformed into its object's frame and
-// checked here, off the cycle's thread, then handed to the cycle (CloudHandoff).
+#include "deformable_collision/ros/cloud_reader.h"
+
 #include <algorithm>
 #include <iterator>
+#include <utility>
 
 #include "deformable_collision/ros/cloud_transform.h"
-#include "deformable_collision/ros/deformable_collision_node.h"
 
 namespace deformable_collision {
 namespace {
@@ -20,8 +20,19 @@ constexpr double kTfFillMinimumS = 1.0;
 
 }  // namespace
 
-void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud,
-                                      std::size_t index) {
+CloudReader::CloudReader(const NodeConfig& config, std::vector<ObjectSlot>& slots,
+                         const Scene& scene, CloudHandoff& handoff,
+                         const tf2_ros::Buffer& tf_buffer, std::function<void()> wake_cycle)
+    : config_(config),
+      slots_(slots),
+      scene_(scene),
+      handoff_(handoff),
+      tf_buffer_(tf_buffer),
+      wake_cycle_(std::move(wake_cycle)),
+      started_(Clock::now()),
+      readers_(slots.size()) {}
+
+void CloudReader::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t index) {
   ObjectSlot& slot = slots_[index];
   auto& awaiting = readers_[index].awaiting_transform;
   ++clouds_received_;
@@ -37,8 +48,9 @@ void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cl
     }
     if (awaiting.size() == kMaxAwaitingClouds) {
       awaiting.pop_front();
-      dropCloud(slot, ros::console::levels::Warn,
-                "more than " + std::to_string(kMaxAwaitingClouds) + " clouds wait for their transform");
+      dropCloud(
+          slot, ros::console::levels::Warn,
+          "more than " + std::to_string(kMaxAwaitingClouds) + " clouds wait for their transform");
     }
     awaiting.push_back({cloud, arrival});
     retryAwaitingClouds(index, arrival);
@@ -49,32 +61,33 @@ void DeformableCollisionNode::onCloud(const sensor_msgs::PointCloud2ConstPtr& cl
   }
 }
 
-bool DeformableCollisionNode::tfFilling() const {
+bool CloudReader::tfFilling() const {
   // The longer of the two: a tf_wait_s above the minimum says that the transforms of this
   // setup may lag that long, and at start-up that includes the first one naming a frame.
   const double fill_s = std::max(config_.tf_wait_s, kTfFillMinimumS);
   return std::chrono::duration<double>(Clock::now() - started_).count() < fill_s;
 }
 
-const std::string& DeformableCollisionNode::targetFrame(const ObjectSlot& slot) const {
+const std::string& CloudReader::targetFrame(const ObjectSlot& slot) const {
   return slot.params.object.kind == ObjectKind::kKinematic ? slot.params.follow_frame
                                                            : config_.fixed_frame;
 }
 
-std::string DeformableCollisionNode::unknownFrameProblem(const ObjectSlot& slot,
-                                                         const std::string& frame) const {
-  if (frame.empty() || frame == targetFrame(slot) || tfFilling() || tf_buffer_._frameExists(frame)) {
+std::string CloudReader::unknownFrameProblem(const ObjectSlot& slot,
+                                             const std::string& frame) const {
+  if (frame.empty() || frame == targetFrame(slot) || tfFilling() ||
+      tf_buffer_._frameExists(frame)) {
     return "";
   }
   return "tf knows no frame '" + frame + "', so the cloud is dropped without waiting tf_wait_s";
 }
 
-void DeformableCollisionNode::retryAwaitingClouds() {
+void CloudReader::retryAwaitingClouds() {
   const auto now = Clock::now();
   for (std::size_t index = 0; index < slots_.size(); ++index) retryAwaitingClouds(index, now);
 }
 
-void DeformableCollisionNode::retryAwaitingClouds(std::size_t index, Clock::time_point now) {
+void CloudReader::retryAwaitingClouds(std::size_t index, Clock::time_point now) {
   auto& awaiting = readers_[index].awaiting_transform;
   while (!awaiting.empty()) {
     const AwaitingCloud& oldest = awaiting.front();
@@ -86,8 +99,8 @@ void DeformableCollisionNode::retryAwaitingClouds(std::size_t index, Clock::time
   }
 }
 
-bool DeformableCollisionNode::processCloud(std::size_t index, const sensor_msgs::PointCloud2& cloud,
-                                           Clock::time_point arrival, bool last_try) {
+bool CloudReader::processCloud(std::size_t index, const sensor_msgs::PointCloud2& cloud,
+                               Clock::time_point arrival, bool last_try) {
   // An exception leaving a callback would take the whole nodelet manager down.
   try {
     return handleCloud(cloud, index, arrival, last_try) != CloudOutcome::kAwaitingTransform;
@@ -97,18 +110,18 @@ bool DeformableCollisionNode::processCloud(std::size_t index, const sensor_msgs:
   }
 }
 
-void DeformableCollisionNode::dropCloud(ObjectSlot& slot, ros::console::levels::Level level,
-                                        const std::string& problem) {
+void CloudReader::dropCloud(ObjectSlot& slot, ros::console::levels::Level level,
+                            const std::string& problem) {
   ++clouds_rejected_;
   std::lock_guard<std::mutex> lock(report_mutex_);
   ++slot.drops_unreported;
   // Throttled per object, so that one noisy topic cannot hide another one's problems.
   const auto now = Clock::now();
   if (slot.last_report && now - *slot.last_report < kReportPeriod) return;
-  const std::string dropped_before =
-      slot.drops_unreported > 1
-          ? " (" + std::to_string(slot.drops_unreported - 1) + " more dropped since the last report)"
-          : "";
+  const std::string dropped_before = slot.drops_unreported > 1
+                                         ? " (" + std::to_string(slot.drops_unreported - 1) +
+                                               " more dropped since the last report)"
+                                         : "";
   ROS_LOG(level, ROSCONSOLE_DEFAULT_NAME, "cloud on %s dropped, object '%s' unchanged: %s%s",
           slot.subscriber.getTopic().c_str(), slot.params.object.name.c_str(), problem.c_str(),
           dropped_before.c_str());
@@ -116,10 +129,10 @@ void DeformableCollisionNode::dropCloud(ObjectSlot& slot, ros::console::levels::
   slot.drops_unreported = 0;
 }
 
-CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
-                                                        const sensor_msgs::PointCloud2& cloud,
-                                                        std::size_t tracked_size,
-                                                        std::vector<Eigen::Vector3d>& points) const {
+CloudReadResult CloudReader::readObjectCloud(const ObjectSlot& slot,
+                                             const sensor_msgs::PointCloud2& cloud,
+                                             std::size_t tracked_size,
+                                             std::vector<Eigen::Vector3d>& points) const {
   // A tracked object keeps non-finite points as unobserved slots, so that point i of every
   // cloud is the same point even when the first cloud has holes (organized depth clouds).
   const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
@@ -137,38 +150,61 @@ CloudReadResult DeformableCollisionNode::readObjectCloud(const ObjectSlot& slot,
   return read;
 }
 
-std::string DeformableCollisionNode::trackedSizeProblem(std::size_t points, std::size_t first_points) {
+std::string CloudReader::trackedSizeProblem(std::size_t points, std::size_t first_points) {
   return "it has " + std::to_string(points) + " points, the first had " +
          std::to_string(first_points) +
          " (a tracked object keeps its points; on_cloud: reset takes a new shape)";
 }
 
-DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
-    const sensor_msgs::PointCloud2& cloud, std::size_t index, Clock::time_point arrival,
-    bool last_try) {
+CloudReader::CloudOutcome CloudReader::handleCloud(const sensor_msgs::PointCloud2& cloud,
+                                                   std::size_t index, Clock::time_point arrival,
+                                                   bool last_try) {
   ObjectSlot& slot = slots_[index];
-  CloudReader& reader = readers_[index];
+  ObjectReader& reader = readers_[index];
   // A tracked object exists for the reader once it has made it: the clouds after the first
   // are fits of that object, which the first cloud brings into the scene (CloudHandoff::put).
   const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
   const bool exists = tracked ? reader.fitter.has_value() : slot.exists.load();
-  if (!exists && !slot.params.model_file.empty()) {
-    // The cycle places the model once tf has model_frame; until then its clouds wait.
-    if (!last_try) return CloudOutcome::kAwaitingTransform;
-    dropCloud(slot, ros::console::levels::Warn,
-              "its model waits for the transform from model_frame '" + slot.params.model_frame +
-                  "' to '" + config_.fixed_frame + "'");
+  if (const auto waiting = waitForModel(slot, exists, last_try)) return *waiting;
+  if (exists && slot.params.on_cloud == OnCloud::kIgnore) return CloudOutcome::kApplied;
+  ReadCloud& read = reader.cloud;
+  CloudReadResult result;
+  if (const auto outcome = readAndPlace(cloud, index, last_try, read, result)) return *outcome;
+  if (tracked && !exists &&
+      std::none_of(read.points.begin(), read.points.end(),
+                   [](const Eigen::Vector3d& p) { return p.allFinite(); })) {
+    dropCloud(slot, ros::console::levels::Error, "every point is non-finite");
     return CloudOutcome::kRejected;
   }
-  if (exists && slot.params.on_cloud == OnCloud::kIgnore) return CloudOutcome::kApplied;
+  prepare(index, exists, read);
+  non_finite_points_ += result.non_finite;
+  read.stamp = cloud.header.stamp;
+  read.arrival = arrival;
+  read.float64 = result.datatype == sensor_msgs::PointField::FLOAT64;
+  handOver(index, read);
+  return CloudOutcome::kApplied;
+}
 
+std::optional<CloudReader::CloudOutcome> CloudReader::waitForModel(ObjectSlot& slot, bool exists,
+                                                                   bool last_try) {
+  if (exists || slot.params.model_file.empty()) return std::nullopt;
+  // The cycle places the model once tf has model_frame; until then its clouds wait.
+  if (!last_try) return CloudOutcome::kAwaitingTransform;
+  dropCloud(slot, ros::console::levels::Warn,
+            "its model waits for the transform from model_frame '" + slot.params.model_frame +
+                "' to '" + config_.fixed_frame + "'");
+  return CloudOutcome::kRejected;
+}
+
+std::optional<CloudReader::CloudOutcome> CloudReader::readAndPlace(
+    const sensor_msgs::PointCloud2& cloud, std::size_t index, bool last_try, ReadCloud& read,
+    CloudReadResult& result) {
+  ObjectSlot& slot = slots_[index];
   const auto reject = [&](const std::string& problem) {
     dropCloud(slot, ros::console::levels::Error, problem);
     return CloudOutcome::kRejected;
   };
-  ReadCloud& read = reader.cloud;
-  const CloudReadResult result =
-      readObjectCloud(slot, cloud, reader.tracked_cloud_size, read.points);
+  result = readObjectCloud(slot, cloud, readers_[index].tracked_cloud_size, read.points);
   if (!result.ok()) return reject(result.error);
   std::string problem;
   switch (transformPoints(slot, cloud, last_try, read, problem)) {
@@ -190,11 +226,13 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
       !tf_buffer_.canTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))) {
     return CloudOutcome::kAwaitingTransform;
   }
-  if (tracked && !exists &&
-      std::none_of(read.points.begin(), read.points.end(),
-                   [](const Eigen::Vector3d& p) { return p.allFinite(); })) {
-    return reject("every point is non-finite");
-  }
+  return std::nullopt;
+}
+
+void CloudReader::prepare(std::size_t index, bool exists, ReadCloud& read) {
+  const ObjectSlot& slot = slots_[index];
+  ObjectReader& reader = readers_[index];
+  const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
   read.prepared = Scene::PreparedObject();
   read.fitted = false;
   if (tracked && exists) {
@@ -210,15 +248,9 @@ DeformableCollisionNode::CloudOutcome DeformableCollisionNode::handleCloud(
     read.prepared = scene_.prepareObject(slot.params.object, std::move(rest_shape));
     if (tracked) startTracking(reader, read);
   }
-  non_finite_points_ += result.non_finite;
-  read.stamp = cloud.header.stamp;
-  read.arrival = arrival;
-  read.float64 = result.datatype == sensor_msgs::PointField::FLOAT64;
-  handOver(index, read);
-  return CloudOutcome::kApplied;
 }
 
-void DeformableCollisionNode::startTracking(CloudReader& reader, ReadCloud& read) {
+void CloudReader::startTracking(ObjectReader& reader, ReadCloud& read) {
   reader.fitter = read.prepared.trackedFitter();
   reader.tracked_cloud_size = read.points.size();
   reader.tracked_indices.clear();
@@ -227,7 +259,7 @@ void DeformableCollisionNode::startTracking(CloudReader& reader, ReadCloud& read
   }
 }
 
-void DeformableCollisionNode::fitTrackedCloud(CloudReader& reader, ReadCloud& read) {
+void CloudReader::fitTrackedCloud(ObjectReader& reader, ReadCloud& read) {
   // A first cloud without holes makes every later one the object's points as they are;
   // otherwise the cloud is taken down to the object's points where it lies (the indices
   // ascend, so none is overwritten before it is read), keeping its buffer's capacity.
@@ -241,9 +273,10 @@ void DeformableCollisionNode::fitTrackedCloud(CloudReader& reader, ReadCloud& re
   read.fitted = true;
 }
 
-DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoints(
-    const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud, bool last_try, ReadCloud& read,
-    std::string& problem) const {
+CloudReader::TransformOutcome CloudReader::transformPoints(const ObjectSlot& slot,
+                                                           const sensor_msgs::PointCloud2& cloud,
+                                                           bool last_try, ReadCloud& read,
+                                                           std::string& problem) const {
   const std::string& target_frame = targetFrame(slot);
   read.viewpoint.reset();
   if (cloud.header.frame_id.empty()) {
@@ -276,14 +309,12 @@ DeformableCollisionNode::TransformOutcome DeformableCollisionNode::transformPoin
   return TransformOutcome::kDone;
 }
 
-void DeformableCollisionNode::handOver(std::size_t index, ReadCloud& read) {
+void CloudReader::handOver(std::size_t index, ReadCloud& read) {
   handoff_.put(index, read);
-  if (config_.cycle_on != CycleOn::kClouds ||
-      slots_[index].params.object.kind != ObjectKind::kTracked) {
-    return;
+  if (config_.cycle_on == CycleOn::kClouds &&
+      slots_[index].params.object.kind == ObjectKind::kTracked) {
+    wake_cycle_();
   }
-  // One wake-up at a time: the cycle clears the flag before it looks at the handoff.
-  if (!wake_pending_.exchange(true)) cycle_queue_.addCallback(wake_);
 }
 
 }  // namespace deformable_collision

@@ -1,0 +1,132 @@
+#pragma once
+
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/buffer.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "deformable_collision/core/scene/scene.h"
+#include "deformable_collision/ros/cloud_handoff.h"
+#include "deformable_collision/ros/node_config.h"
+#include "deformable_collision/ros/object_slot.h"
+#include "deformable_collision/ros/point_cloud_conversion.h"
+
+namespace deformable_collision {
+
+/// The node's reader side, run by its reader thread: converts each object's cloud,
+/// transforms it by tf into the object's frame and checks it, makes new objects
+/// (Scene::prepareObject) and fits tracked ones to their clouds (TrackedFitter), then hands
+/// each to the cycle (CloudHandoff). A cloud whose transform has not come waits, in arrival
+/// order, up to tf_wait_s. It alone touches its per-object state; the drop reports (either
+/// thread) are guarded by a mutex of its own.
+class CloudReader {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  /// Reads into `handoff`; `wake_cycle` wakes the cycle for a cloud that may start one. The
+  /// references must outlive the reader; `scene` is only asked to prepare objects, which
+  /// reads what its construction fixed.
+  CloudReader(const NodeConfig& config, std::vector<ObjectSlot>& slots, const Scene& scene,
+              CloudHandoff& handoff, const tf2_ros::Buffer& tf_buffer,
+              std::function<void()> wake_cycle);
+
+  /// A cloud of object `slot` arrived (the subscription's callback).
+  void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
+  /// Tries the clouds that wait for their transform, in order; drops those that waited
+  /// too long (the retry timer's callback).
+  void retryAwaitingClouds();
+  /// Counts a dropped cloud and says why, at most once per 5 s per object. Either thread.
+  void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
+
+  std::uint64_t cloudsReceived() const { return clouds_received_; }
+  std::uint64_t cloudsRejected() const { return clouds_rejected_; }
+  std::uint64_t nonFinitePoints() const { return non_finite_points_; }
+
+ private:
+  struct AwaitingCloud {
+    sensor_msgs::PointCloud2ConstPtr cloud;
+    Clock::time_point arrival;
+  };
+  /// The reader's state of one object.
+  struct ObjectReader {
+    ReadCloud cloud;  ///< The cloud being read; handed over by a swap.
+    /// Clouds whose transform was not there yet, oldest first, retried in that order on
+    /// the retry timer and on each new cloud, each until tf_wait_s after its arrival.
+    std::deque<AwaitingCloud> awaiting_transform;
+    /// on_cloud track, once the reader has made the object from its first cloud: the
+    /// object's fitter, that cloud's size and the indices of its finite points (the
+    /// object's points).
+    std::optional<TrackedFitter> fitter;
+    std::size_t tracked_cloud_size = 0;
+    std::vector<std::uint32_t> tracked_indices;
+  };
+  enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
+  enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
+
+  /// Whether tf may still be learning its frames, so that an unknown frame may yet come.
+  bool tfFilling() const;
+  /// The frame a cloud of this object is placed in: its follow_frame or the fixed frame.
+  const std::string& targetFrame(const ObjectSlot& slot) const;
+  /// Why a cloud cannot ever be placed because tf knows no such frame; empty if it can be.
+  std::string unknownFrameProblem(const ObjectSlot& slot, const std::string& frame) const;
+  void retryAwaitingClouds(std::size_t slot, Clock::time_point now);
+  /// False if the cloud waits for its transform.
+  bool processCloud(std::size_t slot, const sensor_msgs::PointCloud2& cloud,
+                    Clock::time_point arrival, bool last_try);
+  /// `last_try`: a missing transform refuses the cloud instead of making it wait.
+  CloudOutcome handleCloud(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
+                           Clock::time_point arrival, bool last_try);
+  /// Whether the object waits for its model (model_file) to be placed: its cloud then waits
+  /// too, or on the last try is dropped.
+  std::optional<CloudOutcome> waitForModel(ObjectSlot& slot, bool exists, bool last_try);
+  /// Reads, transforms and checks the cloud into `read`; the outcome if it is not taken.
+  std::optional<CloudOutcome> readAndPlace(const sensor_msgs::PointCloud2& cloud, std::size_t slot,
+                                           bool last_try, ReadCloud& read, CloudReadResult& result);
+  /// Reads the cloud into `points`; its error also says why the object cannot take it
+  /// (empty, or a tracked object's cloud of another size than `tracked_size`, its first's,
+  /// or 0 before that).
+  CloudReadResult readObjectCloud(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
+                                  std::size_t tracked_size,
+                                  std::vector<Eigen::Vector3d>& points) const;
+  /// Why a tracked object refuses a cloud of `points` points.
+  static std::string trackedSizeProblem(std::size_t points, std::size_t first_points);
+  /// Makes a new object (or a new rest shape) of the cloud, or fits a tracked object's.
+  void prepare(std::size_t slot, bool exists, ReadCloud& read);
+  /// A tracked object's first cloud, made into the object in `read.prepared`: the reader
+  /// then fits the clouds after it.
+  static void startTracking(ObjectReader& reader, ReadCloud& read);
+  /// Fits a tracked object's cloud into `read.fit`, its fitted points into `read.points`,
+  /// for the cycle to take over.
+  static void fitTrackedCloud(ObjectReader& reader, ReadCloud& read);
+  /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
+  /// it never will (no frame, an unknown frame once tf has filled, not finite).
+  TransformOutcome transformPoints(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
+                                   bool last_try, ReadCloud& read, std::string& problem) const;
+  /// Hands a read cloud to the cycle, waking it if the cloud may start one.
+  void handOver(std::size_t slot, ReadCloud& read);
+
+  const NodeConfig& config_;
+  std::vector<ObjectSlot>& slots_;
+  const Scene& scene_;
+  CloudHandoff& handoff_;
+  const tf2_ros::Buffer& tf_buffer_;
+  const std::function<void()> wake_cycle_;
+  const Clock::time_point started_;
+  std::vector<ObjectReader> readers_;
+  std::mutex report_mutex_;
+  std::atomic<std::uint64_t> clouds_received_{0};
+  std::atomic<std::uint64_t> clouds_rejected_{0};
+  std::atomic<std::uint64_t> non_finite_points_{0};
+};
+
+}  // namespace deformable_collision
