@@ -9,6 +9,7 @@
 #include <ros/ros.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -194,6 +195,48 @@ XmlRpc::XmlRpcValue nodeParams(const std::string& topic,
   return params;
 }
 
+/// tf's topics, published as its broadcasters do, for all the tests. Advertised again by each
+/// test, a publisher went while the manager kept its subscription (the earlier tests'
+/// nodelets stay loaded): roscpp reconnected that subscription to the next test's publisher
+/// by itself, and the master's late word that the old one had gone then dropped the
+/// connection the test had waited for, so a camera pose sent then was lost and its cloud
+/// rejected after tf_wait_s. A nodelet loaded later shares its manager's subscription.
+class TfEnvironment : public ::testing::Environment {
+ public:
+  void SetUp() override {
+    ros::NodeHandle handle;
+    tf_ = handle.advertise<tf2_msgs::TFMessage>("/tf", 100);
+    static_tf_ = handle.advertise<tf2_msgs::TFMessage>("/tf_static", 100, true);
+  }
+  void TearDown() override {
+    tf_.shutdown();
+    static_tf_.shutdown();
+  }
+
+  const ros::Publisher& tf() const { return tf_; }
+  const ros::Publisher& staticTf() const { return static_tf_; }
+
+  /// Adds `transform` to the latched static ones, replacing one of the same child frame, as
+  /// tf2_ros's static broadcaster does.
+  void sendStatic(const geometry_msgs::TransformStamped& transform) {
+    auto& transforms = static_transforms_.transforms;
+    transforms.erase(std::remove_if(transforms.begin(), transforms.end(),
+                                    [&](const geometry_msgs::TransformStamped& t) {
+                                      return t.child_frame_id == transform.child_frame_id;
+                                    }),
+                     transforms.end());
+    transforms.push_back(transform);
+    static_tf_.publish(static_transforms_);
+  }
+
+ private:
+  ros::Publisher tf_;
+  ros::Publisher static_tf_;
+  tf2_msgs::TFMessage static_transforms_;
+};
+
+TfEnvironment* tf_environment = nullptr;  ///< Owned by gtest, set in main().
+
 /// Loads the nodelet into the test's manager under `name` with `params`; whether it started.
 bool loadNodelet(const std::string& name, const XmlRpc::XmlRpcValue& params) {
   ros::param::set(name, params);
@@ -236,13 +279,14 @@ class RegisterTest : public ::testing::Test {
     // As a camera driver does, the optical frame hangs static under the moving camera: tf
     // then knows the clouds' frame from the node's start, and a cloud that comes before its
     // camera's pose waits for it instead of being dropped as in a frame tf does not know.
-    sendStaticTransform(toTransformStamped(Eigen::Isometry3d::Identity(), ros::Time::now(),
-                                           "test_camera", kCameraOpticalFrame));
+    tf_environment->sendStatic(toTransformStamped(Eigen::Isometry3d::Identity(), ros::Time::now(),
+                                                  "test_camera", kCameraOpticalFrame));
     ASSERT_TRUE(loadNodelet(node, params)) << "the nodelet did not start";
     ASSERT_TRUE(waitFor([this] {
       return last_stats_ && camera_publisher_.getNumSubscribers() > 0 &&
-             deformed_subscriber_.getNumPublishers() > 0 && tf_publisher_.getNumSubscribers() > 0 &&
-             static_tf_publisher_.getNumSubscribers() > 0;
+             deformed_subscriber_.getNumPublishers() > 0 &&
+             tf_environment->tf().getNumSubscribers() > 0 &&
+             tf_environment->staticTf().getNumSubscribers() > 0;
     })) << "the nodelet did not connect";
   }
 
@@ -252,7 +296,8 @@ class RegisterTest : public ::testing::Test {
     const std::string topic = "/register_test/camera_points";
     ASSERT_NO_FATAL_FAILURE(connectNode(kNode, topic, nodeParams(topic, model_file_)));
     EXPECT_EQ(last_stats_->objects, 0u) << "the model's frame is not known yet";
-    sendStaticTransform(toTransformStamped(boxPose(0), ros::Time::now(), "world", "box_start"));
+    tf_environment->sendStatic(
+        toTransformStamped(boxPose(0), ros::Time::now(), "world", "box_start"));
     ASSERT_TRUE(waitFor([this] { return last_stats_->objects == 1u; }))
         << "the model was not placed once its frame came";
   }
@@ -263,7 +308,7 @@ class RegisterTest : public ::testing::Test {
     const ros::Time stamp = ros::Time::now();
     tf2_msgs::TFMessage camera_pose;
     camera_pose.transforms.push_back(toTransformStamped(camera, stamp, "world", "test_camera"));
-    tf_publisher_.publish(camera_pose);
+    tf_environment->tf().publish(camera_pose);
     cloud.header.frame_id = kCameraOpticalFrame;
     cloud.header.stamp = stamp;
     const std::uint64_t received = last_stats_->clouds_received;
@@ -285,19 +330,7 @@ class RegisterTest : public ::testing::Test {
 
   const RegistrationStats& registration() const { return applied_->registrations.at(0); }
 
-  /// Adds `transform` to the latched static ones, as tf2_ros's static broadcaster does.
-  void sendStaticTransform(const geometry_msgs::TransformStamped& transform) {
-    static_transforms_.transforms.push_back(transform);
-    static_tf_publisher_.publish(static_transforms_);
-  }
-
   ros::NodeHandle handle_;
-  // tf's topics published as its broadcasters do, on publishers whose connection to the
-  // node the test waits for: a camera pose sent before it would be lost.
-  ros::Publisher tf_publisher_ = handle_.advertise<tf2_msgs::TFMessage>("/tf", 100);
-  ros::Publisher static_tf_publisher_ =
-      handle_.advertise<tf2_msgs::TFMessage>("/tf_static", 100, true);
-  tf2_msgs::TFMessage static_transforms_;
   ros::Publisher camera_publisher_;
   ros::Subscriber deformed_subscriber_;
   ros::Subscriber stats_subscriber_;
@@ -428,5 +461,7 @@ int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "register_test_client");
   ros::NodeHandle keep_alive;
+  deformable_collision::test::tf_environment = new deformable_collision::test::TfEnvironment;
+  testing::AddGlobalTestEnvironment(deformable_collision::test::tf_environment);
   return RUN_ALL_TESTS();
 }
