@@ -54,27 +54,41 @@ boost::shared_ptr<const Message> waitForStamp(
   return found;
 }
 
-/// The floor, published once for all the tests on a latched topic. The tests share the node,
-/// and a floor sent again by each test could reach it at any time after that test's counts
-/// had started.
-class FloorEnvironment : public ::testing::Environment {
+/// The clouds' publishers, advertised once for all the tests, and the floor, published once
+/// on a latched topic. The tests share the node, and a floor sent again by each test could
+/// reach it at any time after that test's counts had started. A publisher advertised again
+/// by each test went while the node kept its subscription: roscpp reconnected the
+/// subscription to the next test's publisher by itself, and the master's late word that the
+/// old one had gone then dropped the connection the test had waited for, losing the clouds
+/// sent until the node connected again (a burst, the cloud of a test's start).
+class InputEnvironment : public ::testing::Environment {
  public:
   void SetUp() override {
-    publisher_ = ros::NodeHandle().advertise<PointCloud2>("/test/floor", 1, true);
-    publisher_.publish(cloudOf(floorPoints(), "world"));
+    ros::NodeHandle handle;
+    floor_ = handle.advertise<PointCloud2>("/test/floor", 1, true);
+    floor_.publish(cloudOf(floorPoints(), "world"));
+    for (const std::string name : {"probe", "far"}) {
+      inputs_[name] = handle.advertise<PointCloud2>("/test/" + name, 100);
+    }
   }
-  void TearDown() override { publisher_.shutdown(); }
+  void TearDown() override {
+    floor_.shutdown();
+    inputs_.clear();
+  }
+
+  /// The publishers of /test/probe and /test/far, by object.
+  std::map<std::string, ros::Publisher>& inputs() { return inputs_; }
 
  private:
-  ros::Publisher publisher_;
+  ros::Publisher floor_;
+  std::map<std::string, ros::Publisher> inputs_;
 };
+
+InputEnvironment* input_environment = nullptr;  ///< Owned by gtest, set in main().
 
 class CycleOnCloudsTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    for (const std::string name : {"probe", "far"}) {
-      inputs_[name] = handle_.advertise<PointCloud2>("/test/" + name, 100);
-    }
     contacts_subscriber_ = handle_.subscribe<ContactArray>(
         kNode + "/contacts", 1000,
         boost::function<void(const ContactArray::ConstPtr&)>(
@@ -126,7 +140,7 @@ class CycleOnCloudsTest : public ::testing::Test {
   Stats::ConstPtr waitForStats(const ros::Time& stamp) { return waitForStamp(stats_, stamp); }
 
   ros::NodeHandle handle_;
-  std::map<std::string, ros::Publisher> inputs_;
+  std::map<std::string, ros::Publisher>& inputs_ = input_environment->inputs();
   ros::Subscriber contacts_subscriber_, stats_subscriber_, far_subscriber_, probe_subscriber_;
   std::vector<ContactArray::ConstPtr> contacts_;
   std::vector<Stats::ConstPtr> stats_;
@@ -336,6 +350,7 @@ int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_cycle_on_clouds");
   ros::NodeHandle handle;
-  testing::AddGlobalTestEnvironment(new deformable_collision::test::FloorEnvironment);
+  deformable_collision::test::input_environment = new deformable_collision::test::InputEnvironment;
+  testing::AddGlobalTestEnvironment(deformable_collision::test::input_environment);
   return RUN_ALL_TESTS();
 }
