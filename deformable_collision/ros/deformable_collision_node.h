@@ -8,9 +8,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <deque>
-#include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
