@@ -76,6 +76,7 @@ std::size_t ContactResponse::respond() {
   // (closer than the contact distance) and are still held apart.
   ++cycle_count_;
   points_displaced_ = 0;
+  for (ContactRun& run : contact_runs_) run.impulse_ns.setZero();
   readMeanVelocities();
   rankSupport();
   for (auto& object : objects_) object->contact_memory.forgetBefore(cycle_count_);
@@ -135,8 +136,7 @@ void ContactResponse::resolvePairs() {
     const ContactRun& run = contact_runs_[r];
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
-    if (a.dynamic() || b.dynamic())
-      resolvePair(a, b, run.object_a, run.object_b, run.begin, run.end);
+    if (a.dynamic() || b.dynamic()) resolvePair(a, b, r);
   };
   // The pairs with a fixed object come first (support depth 0); their moves are made
   // together before the pairs between dynamic objects are resolved.
@@ -220,6 +220,21 @@ void ContactResponse::exchangeVelocity(const VelocityExchange& exchange) {
                                      : stopApproach(relative, exchange.normal, config_.friction);
   if (a.dynamic()) a.velocity_change += exchange.share_a * change;
   if (b.dynamic()) b.velocity_change -= (1.0 - exchange.share_a) * change;
+  // An object nearer to the support acts as fixed (share 0 or 1): the momentum is what the
+  // moving one took.
+  contact_runs_[exchange.run].impulse_ns +=
+      exchange.share_a > 0.0 ? Eigen::Vector3d(a.body.config().mass_kg * exchange.share_a * change)
+                             : Eigen::Vector3d(b.body.config().mass_kg * change);
+}
+
+void ContactResponse::addImpulse(std::uint32_t run, const Object& object,
+                                 const Eigen::Vector3d& impulse) {
+  ContactRun& r = contact_runs_[run];
+  if (objects_[r.object_a].get() == &object) {
+    r.impulse_ns += impulse;
+  } else {
+    r.impulse_ns -= impulse;
+  }
 }
 
 // A pair resolved after an object's pair with a fixed one may push it back into the fixed
@@ -229,7 +244,8 @@ void ContactResponse::exchangeVelocity(const VelocityExchange& exchange) {
 // cycle and never rest. So every object stops approaching the fixed objects it was pushed
 // off, once all pairs have changed its velocity; the fixed object takes that momentum.
 void ContactResponse::stopApproachToFixedPartners() {
-  for (const ContactRun& run : contact_runs_) {
+  for (std::uint32_t r = 0; r < contact_runs_.size(); ++r) {
+    const ContactRun& run = contact_runs_[r];
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
     if (a.dynamic() == b.dynamic()) continue;
@@ -237,7 +253,9 @@ void ContactResponse::stopApproachToFixedPartners() {
     const auto* side = moving.contact_memory.find(a.dynamic() ? run.object_b : run.object_a);
     if (!side || side->cycle != cycle_count_) continue;
     const double approach = (moving.mean_velocity + moving.velocity_change).dot(side->normal);
-    if (approach < 0.0) moving.velocity_change -= approach * side->normal;
+    if (approach >= 0.0) continue;
+    moving.velocity_change -= approach * side->normal;
+    addImpulse(r, moving, -approach * moving.body.config().mass_kg * side->normal);
   }
 }
 
@@ -261,11 +279,13 @@ void ContactResponse::applyObjectResponse(Object& object) {
     // The points make the move in the next step's pass over them.
     object.body.deferRigidMove(object.translation, object.velocity_change);
   } else {
+    sumDentImpulses(object);
     const RigidMotion motion = object.body.rigidMotion();
     const Sphere& bound = object.tree.sphere(0);
     const detail::RigidVelocityChange balance = object.dents.balanceVelocityChanges(
         object.body.positions(), motion, object.body.pointMassKg(),
         (bound.center - motion.center).norm() + bound.radius);
+    addDentImpulses(object, balance.paid);
     object.body.moveRigidly(object.translation, object.velocity_change - balance.velocity,
                             -balance.spin, balance.center + object.translation);
     points_displaced_ += object.dents.displacements.size();
@@ -276,9 +296,12 @@ void ContactResponse::applyObjectResponse(Object& object) {
   object.stale = true;
 }
 
-void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t index_a,
-                                  std::uint32_t index_b, std::size_t run_begin,
-                                  std::size_t run_end) {
+void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {
+  const ContactRun& r = contact_runs_[run];
+  const std::uint32_t index_a = r.object_a;
+  const std::uint32_t index_b = r.object_b;
+  const std::size_t run_begin = r.begin;
+  const std::size_t run_end = r.end;
   // Pushes per contact, for a (along +normal) and b (along -normal): a node's depth along
   // a normal from b to a, shared by inverse mass between dynamic nodes.
   pushes_.clear();
@@ -293,6 +316,7 @@ void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t index_a,
                      contacts_[run_begin].contact.point_a != SphereContact::kNoPoint,
                      a.translation,
                      b.translation};
+  pair.run = run;
   pair.held = heldContact(pair);
   pair.side_of_a = sideOfA(pair);
   if (!pair.one_side_fixed) {
@@ -401,7 +425,7 @@ void ContactResponse::exchangeVelocities(ResolvingPair& pair, const Eigen::Vecto
   // past the friction cone, a resting object kept sliding down it at a steady few cm/s while
   // its position stood still, and the objects it carried took that velocity on.
   const bool sticks = holdStaticFriction(pair, normal, share_a);
-  velocity_exchanges_.push_back({pair.index_a, pair.index_b, normal, share_a, sticks});
+  velocity_exchanges_.push_back({pair.index_a, pair.index_b, normal, share_a, sticks, pair.run});
   exchangeVelocity(velocity_exchanges_.back());
   if (pair.one_side_fixed) {
     const bool a_moves = a.dynamic();

@@ -22,6 +22,9 @@ struct ContactRun {
   std::size_t begin = 0;
   std::size_t end = 0;
   bool support_link = true;  ///< Whether the support ranking counts the pair.
+  /// The momentum this cycle's response gave object a through the pair (N s, scene frame):
+  /// -impulse_ns went to b.
+  Eigen::Vector3d impulse_ns = Eigen::Vector3d::Zero();
 };
 
 /// The level-of-detail response (paper section 6) to a cycle's contacts: each pair of
@@ -74,6 +77,7 @@ class ContactResponse {
     Eigen::Vector3d normal;  ///< From b to a.
     double share_a;          ///< a's share of the change (shock propagation).
     bool sticks;             ///< Static friction held the pair in position.
+    std::uint32_t run;       ///< Its contact run, which counts the momentum exchanged.
   };
   /// A dynamic object's move for one of its pairs with a fixed object, kept until every
   /// such pair is resolved (fixed_pair_moves_).
@@ -112,8 +116,15 @@ class ContactResponse {
   /// Dents the pending nodes by what their contacts need beyond the object's move, once
   /// every pair has added to that move.
   void applyPendingDents(Object& object);
-  void resolvePair(Object& a, Object& b, std::uint32_t index_a, std::uint32_t index_b,
-                   std::size_t run_begin, std::size_t run_end);
+  /// Sums per run the momentum the object's dented points' stops exchange with the partners
+  /// (dent_impulses_), before the other points pay for them.
+  void sumDentImpulses(const Object& object);
+  /// Adds those to the runs, less the share of `paid` (per unit point mass) the object's
+  /// other points paid for them.
+  void addDentImpulses(const Object& object, const Eigen::Vector3d& paid);
+  /// Adds `impulse` on `object` to the run: on its a, or against its b.
+  void addImpulse(std::uint32_t run, const Object& object, const Eigen::Vector3d& impulse);
+  void resolvePair(Object& a, Object& b, std::uint32_t run);
   void holdClearContact(ResolvingPair& pair);
   bool heldContact(const ResolvingPair& pair);
   /// How far an object in contact was carried by its mean velocity in this cycle's step (0
@@ -177,6 +188,12 @@ class ContactResponse {
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
   std::vector<ReachingNode> lowest_descent_;
+  /// One object's dent momentum per run (countDentImpulses).
+  struct RunImpulse {
+    std::uint32_t run;
+    Eigen::Vector3d impulse_ns;
+  };
+  std::vector<RunImpulse> dent_impulses_;
   std::size_t points_displaced_ = 0;  ///< By this response's dents.
   std::uint64_t cycle_count_ = 1;
   std::uint64_t pair_serial_ = 0;  ///< Counts resolvePair calls: keys each pair's dents.

@@ -13,6 +13,7 @@ void DentScratch::reserve(std::size_t point_count, std::size_t node_count) {
   displacement_sums.assign(point_count, Eigen::Vector3d::Zero());
   velocity_change_sums.assign(point_count, Eigen::Vector3d::Zero());
   displacement_counts.assign(point_count, 0);
+  run_of_point.assign(point_count, 0);
   displaced_points.reserve(point_count);
   displacements.reserve(point_count);
   dent_of_node.assign(node_count, 0);
@@ -23,7 +24,7 @@ void DentScratch::reserve(std::size_t point_count, std::size_t node_count) {
 // fixed node's plane): they are kept as one dent with a list of depths, so that the node's
 // points are visited once for all of them.
 void DentScratch::add(std::uint32_t node, const Eigen::Vector3d& away, double depth_unmoved_m,
-                      std::uint32_t partner, std::uint64_t pair_serial,
+                      std::uint32_t partner, std::uint32_t run, std::uint64_t pair_serial,
                       std::optional<double> surface_m) {
   const std::uint32_t depth = static_cast<std::uint32_t>(depths.size());
   depths.push_back({depth_unmoved_m, surface_m.value_or(0.0), kNoDepth});
@@ -37,7 +38,7 @@ void DentScratch::add(std::uint32_t node, const Eigen::Vector3d& away, double de
   }
   dent_pair_of_node[node] = pair_serial;
   dent_of_node[node] = static_cast<std::uint32_t>(pending.size());
-  pending.push_back({node, away, partner, depth, depth, surface_m.has_value()});
+  pending.push_back({node, away, partner, run, depth, depth, surface_m.has_value()});
 }
 
 void DentScratch::averageDisplacements() {
@@ -103,10 +104,12 @@ RigidVelocityChange DentScratch::balanceVelocityChanges(
     balance.spin = pseudoInverseSymmetric<3>(about_rest_center).inverse * turn;
   }
   balance.velocity = (momentum + rest_offset.cross(balance.spin)) / count;
+  balance.paid = momentum;
   const double fastest_pay = balance.velocity.norm() + balance.spin.norm() * reach_m;
   if (fastest_pay > fastest_stop) {
     balance.velocity *= fastest_stop / fastest_pay;
     balance.spin *= fastest_stop / fastest_pay;
+    balance.paid *= fastest_stop / fastest_pay;
   }
   for (PointDisplacement& d : displacements) {
     d.velocity_change_mps +=

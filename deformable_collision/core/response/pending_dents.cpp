@@ -35,7 +35,10 @@ Beyond beyond(const DentScratch& dents, const DentScratch::PendingDent& pending,
 void dentPoint(detail::SceneObject& object, const DentScratch::PendingDent& pending,
                std::uint32_t point, const Beyond& need, const Eigen::Vector3d& other_velocity) {
   DentScratch& dents = object.dents;
-  if (dents.displacement_counts[point] == 0) dents.displaced_points.push_back(point);
+  if (dents.displacement_counts[point] == 0) {
+    dents.displaced_points.push_back(point);
+    dents.run_of_point[point] = pending.run;
+  }
   dents.displacement_counts[point] += need.count;
   dents.displacement_sums[point] += need.sum_m * pending.away;
   const double inward =
@@ -86,12 +89,12 @@ void ContactResponse::queueDents(const ResolvingPair& pair) {
         to_surface ? std::optional<double>(push.surface_m) : std::nullopt;
     if (a.dynamic() && push.depth_a > 0.0) {
       a.dents.add(push.node_a, push.normal,
-                  push.depth_a + pair.translation_before_a.dot(push.normal), pair.index_b,
+                  push.depth_a + pair.translation_before_a.dot(push.normal), pair.index_b, pair.run,
                   pair_serial_, surface);
     }
     if (b.dynamic() && push.depth_b > 0.0) {
       b.dents.add(push.node_b, -push.normal,
-                  push.depth_b - pair.translation_before_b.dot(push.normal), pair.index_a,
+                  push.depth_b - pair.translation_before_b.dot(push.normal), pair.index_a, pair.run,
                   pair_serial_, surface);
     }
   }
@@ -113,6 +116,37 @@ void ContactResponse::applyPendingDents(Object& object) {
   }
   object.dents.pending.clear();
   object.dents.depths.clear();
+}
+
+// The dented points' stops are the contact's share of the object's elastic pull against its
+// partners (a squeezed object's, which whole-object changes never see); the object's other
+// points pay back part of it (balanceVelocityChanges), the rest of the partners' momentum.
+// That part is shared among the runs by the size of their stops: a resting object's single
+// support takes it all back, and two jaws squeezing from opposite sides pay each other.
+void ContactResponse::sumDentImpulses(const Object& object) {
+  dent_impulses_.clear();
+  const double mass = object.body.pointMassKg();
+  for (const PointDisplacement& d : object.dents.displacements) {
+    const std::uint32_t run = object.dents.run_of_point[d.point];
+    auto entry = std::find_if(dent_impulses_.begin(), dent_impulses_.end(),
+                              [run](const RunImpulse& e) { return e.run == run; });
+    if (entry == dent_impulses_.end()) {
+      dent_impulses_.push_back({run, Eigen::Vector3d::Zero()});
+      entry = dent_impulses_.end() - 1;
+    }
+    entry->impulse_ns += mass * d.velocity_change_mps;
+  }
+}
+
+void ContactResponse::addDentImpulses(const Object& object, const Eigen::Vector3d& paid) {
+  const double mass = object.body.pointMassKg();
+  double total_norm = 0.0;
+  for (const RunImpulse& e : dent_impulses_) total_norm += e.impulse_ns.norm();
+  if (total_norm == 0.0) return;
+  for (const RunImpulse& e : dent_impulses_) {
+    const double share = e.impulse_ns.norm() / total_norm;
+    addImpulse(e.run, object, e.impulse_ns - share * mass * paid);
+  }
 }
 
 }  // namespace deformable_collision

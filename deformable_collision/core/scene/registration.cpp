@@ -36,6 +36,7 @@ RegistrationReport Scene::registerCloud(std::size_t object,
   const RegistrationReport report = o.registration->registerCloud(
       o.body, cloud_m, viewpoint_m, filtered ? &near_other_objects : nullptr);
   if (!report.held) {
+    o.registration_residual_m = report.mean_residual_m;
     o.stale = true;
     ++stats_.objects_moved;
   }

@@ -38,7 +38,7 @@ SceneObject::SceneObject(const ObjectConfig& object_config,
 }  // namespace detail
 
 Scene::Scene(const SceneConfig& config)
-    : config_(config), response_(objects_, contacts_, contact_runs_, config_) {
+    : config_(config), response_(objects_, contacts_, contact_runs_, config_), forces_(objects_) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
   std::ostringstream value;
   if (!config.gravity_mps2.allFinite()) fail("SceneConfig.gravity_mps2 is not finite");
@@ -154,6 +154,12 @@ void Scene::resetRestShape(std::size_t object, PreparedObject&& prepared) {
 
 std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
                                                  std::vector<Eigen::Vector3d> rest_points_m) const {
+  if (!(config.contact_stiffness_n_per_m >= 0.0) ||
+      !std::isfinite(config.contact_stiffness_n_per_m)) {
+    throw std::invalid_argument("object '" + config.name + "': contact_stiffness_n_per_m = " +
+                                std::to_string(config.contact_stiffness_n_per_m) +
+                                " must be finite and >= 0");
+  }
   std::unique_ptr<Object> made;
   try {
     made = std::make_unique<Object>(config, std::move(rest_points_m), config_.tree);
@@ -270,6 +276,7 @@ void Scene::cycle() {
   const auto detected = Clock::now();
 
   stats_.points_displaced = response_.respond();
+  forces_.assign(contacts_, contact_runs_, config_.dt_s);
   // Queries between cycles see the state after the response.
   refreshStaleTrees();
   const auto responded = Clock::now();
@@ -387,6 +394,7 @@ void Scene::contactsAt(int level, std::optional<std::size_t> object_a,
   refreshStaleTrees();
   contacts.clear();
   detect(level, object_a, object_b, contacts, nullptr);
+  forces_.assignQueried(contacts, contact_runs_, config_.dt_s);
   stats_ = kept;
   query_counters_ = kept_counters;
 }

@@ -15,6 +15,7 @@
 #include "deformable_collision/core/query/broad_phase.h"
 #include "deformable_collision/core/query/collision_query.h"
 #include "deformable_collision/core/registration/cloud_registration.h"
+#include "deformable_collision/core/response/contact_forces.h"
 #include "deformable_collision/core/response/contact_response.h"
 #include "deformable_collision/core/scene/tracked_fitter.h"
 #include "deformable_collision/core/shape_matching/shape_matching.h"
@@ -47,6 +48,10 @@ struct ObjectConfig {
   std::string name;
   ObjectKind kind = ObjectKind::kDynamic;
   ShapeMatchingConfig shape;
+  /// Tracked objects (>= 0): the force per metre of indentation that a probe pressed into
+  /// the object reads (a calibration); its contacts with objects the response never moves
+  /// get that force (ContactForces). 0: those contacts report no force.
+  double contact_stiffness_n_per_m = 0.0;
 };
 
 struct SceneConfig {
@@ -69,6 +74,12 @@ struct SceneContact {
   std::uint32_t object_a = 0;
   std::uint32_t object_b = 0;
   SphereContact contact;
+  /// The force on object a through this contact (N, scene frame; b gets its opposite), from
+  /// the last response (ContactForces).
+  Eigen::Vector3d force_n = Eigen::Vector3d::Zero();
+  /// How far force_n can be from the sum of the finest level's forces of the two nodes'
+  /// points (N, >= 0): 0 at the leaves of a dynamic pair.
+  double force_error_n = 0.0;
 };
 
 /// Per-cycle timings (steady clock) and counts.
@@ -201,9 +212,9 @@ class Scene {
       std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m,
       const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
 
-  /// One cycle; its contacts are contacts() and its figures stats(). A pair of objects
-  /// neither of which changed since the last detection (the last cycle's, or detectAhead()'s),
-  /// at the same level, keeps that detection's contacts without a query
+  /// One cycle; its contacts are contacts() (with their forces) and its figures stats(). A pair of
+  /// objects neither of which changed since the last detection (the last cycle's, or
+  /// detectAhead()'s), at the same level, keeps that detection's contacts without a query
   /// (stats().object_pairs_reused).
   void cycle();
 
@@ -250,7 +261,8 @@ class Scene {
   void detectAhead();
 
   /// Contacts at `level` on the current state, for objects a and b (std::nullopt: any).
-  /// The running level and the contacts of the last cycle are left alone. Like cycle(), it
+  /// The running level and the contacts of the last cycle are left alone; each object pair's
+  /// force is the last cycle's, shared among these contacts (ContactForces). Like cycle(), it
   /// never reports two static objects touching: the broad phase never pairs them, since
   /// neither can move the other.
   /// @throw std::out_of_range if level is not in [0, maxLevel()] or an object index is not.
@@ -342,6 +354,7 @@ class Scene {
   QueryCounters query_counters_;
   CycleStats stats_;
   ContactResponse response_;  ///< Reads objects_, contacts_, contact_runs_ and config_.
+  ContactForces forces_;      ///< Reads objects_.
 };
 
 }  // namespace deformable_collision

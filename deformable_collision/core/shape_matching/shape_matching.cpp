@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "deformable_collision/core/shape_matching/clustering.h"
@@ -303,6 +304,37 @@ Eigen::Vector3d ShapeMatchingBody::meanVelocity() const {
   Eigen::Vector3d momentum = Eigen::Vector3d::Zero();
   for (const auto& sums : cluster_sums_) momentum += sums.momentum;
   return momentum / config_.mass_kg;
+}
+
+// Rigid, whatever the mode: a linear or quadratic fit follows a local dent part of the way,
+// and by a share that grows with it, so that the dent would not read in proportion.
+void ShapeMatchingBody::restPoseTransforms(std::vector<Eigen::Matrix<double, 3, 9>>& transforms,
+                                           std::vector<Eigen::Vector3d>& translations) const {
+  transforms.assign(rest_->clusters.size(), Eigen::Matrix<double, 3, 9>::Zero());
+  translations.resize(rest_->clusters.size());
+  for (std::size_t k = 0; k < rest_->clusters.size(); ++k) {
+    detail::stepGoal<DeformationMode::kRigid>(rest_->clusters[k], deformations_[k], 0.0, false,
+                                              transforms[k], translations[k]);
+  }
+}
+
+Eigen::Vector3d ShapeMatchingBody::goalPosition(
+    std::size_t point, const std::vector<Eigen::Matrix<double, 3, 9>>& transforms,
+    const std::vector<Eigen::Vector3d>& translations) const {
+  if (point >= positions_.size() || transforms.size() != rest_->clusters.size() ||
+      translations.size() != transforms.size()) {
+    throw std::out_of_range("goalPosition: point " + std::to_string(point) + " of " +
+                            std::to_string(positions_.size()) + ", or transforms of another body");
+  }
+  const std::uint32_t begin = rest_->point_slot_offsets[point];
+  const std::uint32_t end = rest_->point_slot_offsets[point + 1];
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (std::uint32_t m = begin; m < end; ++m) {
+    const auto [k, slot] = rest_->point_slots[m];
+    sum +=
+        transforms[k] * quadraticFeatures(rest_->clusters[k].rest_offsets[slot]) + translations[k];
+  }
+  return sum / static_cast<double>(end - begin);
 }
 
 template <DeformationMode Mode>

@@ -256,6 +256,18 @@ class ShapeMatchingBody {
   /// Mass-weighted mean velocity of the object, from the fit sums (O(clusters)).
   Eigen::Vector3d meanVelocity() const;
 
+  /// Each cluster's rest shape placed by its fitted rotation and centre of mass (the rigid
+  /// goal), as a transform of the quadratic features and a translation, into `transforms`
+  /// and `translations` (resized to clusterCount()). O(clusters).
+  void restPoseTransforms(std::vector<Eigen::Matrix<double, 3, 9>>& transforms,
+                          std::vector<Eigen::Vector3d>& translations) const;
+  /// Where those put `point`, undeformed: the mean over the clusters holding it. A contact's
+  /// indentation of a tracked object is how far its points lie from here.
+  /// @throw std::out_of_range for a bad point index or transforms of another size.
+  Eigen::Vector3d goalPosition(std::size_t point,
+                               const std::vector<Eigen::Matrix<double, 3, 9>>& transforms,
+                               const std::vector<Eigen::Vector3d>& translations) const;
+
   const ShapeMatchingConfig& config() const { return config_; }
   VectorWidth vectorWidth() const { return vector_width_; }
   std::size_t pointCount() const { return positions_.size(); }

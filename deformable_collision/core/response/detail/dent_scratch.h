@@ -17,6 +17,8 @@ struct RigidVelocityChange {
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
   Eigen::Vector3d spin = Eigen::Vector3d::Zero();
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  /// The momentum the points outside the dents give up for them, per unit point mass.
+  Eigen::Vector3d paid = Eigen::Vector3d::Zero();
 };
 
 /// The dents of a dynamic object: each contact node's push, kept until the object's move
@@ -28,6 +30,7 @@ struct DentScratch {
     std::uint32_t node = 0;
     Eigen::Vector3d away = Eigen::Vector3d::UnitZ();  ///< Direction this object is pushed.
     std::uint32_t partner = 0;                        ///< The object it touches.
+    std::uint32_t run = 0;                            ///< The pair's contact run.
     /// Its contacts' depths in depths, a list from first_depth to last_depth.
     std::uint32_t first_depth = kNoDepth;
     std::uint32_t last_depth = kNoDepth;
@@ -48,7 +51,7 @@ struct DentScratch {
   /// as `pair_serial`; with `surface_m`, each of the node's points only as far as it lies
   /// short of that level along `away` (every contact of a pair dents alike).
   void add(std::uint32_t node, const Eigen::Vector3d& away, double depth_unmoved_m,
-           std::uint32_t partner, std::uint64_t pair_serial,
+           std::uint32_t partner, std::uint32_t run, std::uint64_t pair_serial,
            std::optional<double> surface_m = std::nullopt);
   /// Turns the sums into one mean displacement per dented point (in displacements) and
   /// clears them.
@@ -70,6 +73,9 @@ struct DentScratch {
   std::vector<Eigen::Vector3d> displacement_sums;
   std::vector<Eigen::Vector3d> velocity_change_sums;
   std::vector<std::uint32_t> displacement_counts;
+  /// The run of each displaced point's first dent this response: the pair whose partner
+  /// takes its stop's momentum.
+  std::vector<std::uint32_t> run_of_point;
   std::vector<std::uint32_t> displaced_points;
   std::vector<PointDisplacement> displacements;
 };

@@ -37,6 +37,7 @@ struct ContactResponse::ResolvingPair {
   /// normal) into a fixed object that pushed it off in this response.
   bool a_against_fixed = false;
   bool b_against_fixed = false;
+  std::uint32_t run = 0;  ///< Its contact run.
 };
 
 struct ContactResponse::FixedSurface {

@@ -49,6 +49,8 @@ struct SceneObject {
   ContactMemory contact_memory;
   /// Tracked objects fitted to unordered clouds: made on the first such cloud.
   std::optional<CloudRegistration> registration;
+  /// The last registered cloud's mean residual: how far its indentations may be off.
+  double registration_residual_m = 0.0;
 
   /// Dynamic objects: their centre of mass before this cycle's step, where a new contact's
   /// side is seen from (a long step may carry the centre past a thin floor). Taken from the

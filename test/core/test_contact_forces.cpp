@@ -1,0 +1,272 @@
+// Contact forces (ContactForces, through the Scene) as physics, not wiring: a body resting on
+// a floor presses it with its weight at every level and in every deformation mode, two jaws
+// squeezing a body push it equally and oppositely and harder the deeper they squeeze, and a
+// tracked body's force follows its indentation.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <memory>
+#include <numeric>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "deformable_collision/core/scene/scene.h"
+#include "deformable_collision/scenes/shapes.h"
+#include "scene_test_support.h"
+
+namespace deformable_collision {
+namespace test {
+namespace {
+
+/// The force on `object` through the contacts, summed (each contact's force is on its a).
+Eigen::Vector3d forceOn(const std::vector<SceneContact>& contacts, std::size_t object) {
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();
+  for (const SceneContact& c : contacts) {
+    if (c.object_a == object) force += c.force_n;
+    if (c.object_b == object) force -= c.force_n;
+  }
+  return force;
+}
+
+bool allForcesFinite(const std::vector<SceneContact>& contacts) {
+  for (const SceneContact& c : contacts) {
+    if (!c.force_n.allFinite() || !std::isfinite(c.force_error_n) || c.force_error_n < 0.0) {
+      return false;
+    }
+  }
+  return true;
+}
+
+/// A 2 kg soft ball, 5 cm radius, 1500 points.
+ObjectConfig ballConfig(DeformationMode mode, ObjectKind kind = ObjectKind::kDynamic) {
+  ObjectConfig ball;
+  ball.name = "ball";
+  ball.kind = kind;
+  ball.shape.mode = mode;
+  ball.shape.clusters = mode == DeformationMode::kRigid ? 1 : 4;
+  ball.shape.stiffness = 0.5;
+  ball.shape.mass_kg = 2.0;
+  return ball;
+}
+
+Points ballPoints(const Eigen::Vector3d& center) {
+  Points points = sampleEllipsoid(1500, Eigen::Vector3d::Constant(0.05), 11);
+  for (auto& p : points) p += center;
+  return points;
+}
+
+// ---------------------------------------------------------------------------------------
+// At rest on a floor, the floor carries the ball's weight: over the last 50 of 250 cycles
+// the mean force on the ball is m g up, within 5%, at every level and in every mode.
+
+class RestingForceTest : public ::testing::TestWithParam<std::tuple<DeformationMode, int>> {};
+
+TEST_P(RestingForceTest, FloorCarriesTheWeight) {
+  const auto [mode, level] = GetParam();
+  auto scene = sceneOnFloor(level);
+  const std::size_t ball = scene->addObject(ballConfig(mode), ballPoints({0.0, 0.0, 0.06}));
+  if (level > scene->maxLevel()) GTEST_SKIP() << "the scene has " << scene->maxLevel() << " levels";
+  scene->setLevel(level);
+  constexpr int kCycles = 250, kLate = 50;
+  Eigen::Vector3d late_sum = Eigen::Vector3d::Zero();
+  for (int cycle = 0; cycle < kCycles; ++cycle) {
+    scene->cycle();
+    ASSERT_TRUE(allForcesFinite(scene->contacts())) << "cycle " << cycle;
+    if (cycle >= kCycles - kLate) late_sum += forceOn(scene->contacts(), ball);
+  }
+  const double weight = 2.0 * 9.81;
+  const Eigen::Vector3d mean = late_sum / kLate;
+  EXPECT_NEAR(mean.z(), weight, 0.05 * weight);
+  EXPECT_LT(mean.head<2>().norm(), 0.05 * weight);
+  // Third law: the floor gets the opposite.
+  const Eigen::Vector3d on_floor = forceOn(scene->contacts(), 0);
+  EXPECT_TRUE((on_floor + forceOn(scene->contacts(), ball)).isZero(1e-9));
+}
+
+std::vector<int> restingLevels() {
+  auto scene = sceneOnFloor(-1);
+  scene->addObject(ballConfig(DeformationMode::kLinear), ballPoints({0.0, 0.0, 0.06}));
+  std::vector<int> levels(scene->maxLevel() + 1);
+  std::iota(levels.begin(), levels.end(), 0);
+  return levels;
+}
+
+INSTANTIATE_TEST_SUITE_P(ModesAndLevels, RestingForceTest,
+                         ::testing::Combine(::testing::Values(DeformationMode::kRigid,
+                                                              DeformationMode::kLinear,
+                                                              DeformationMode::kQuadratic),
+                                            ::testing::ValuesIn(restingLevels())),
+                         [](const auto& info) {
+                           return std::string(toString(std::get<0>(info.param))) + "_level_" +
+                                  std::to_string(std::get<1>(info.param));
+                         });
+
+// ---------------------------------------------------------------------------------------
+// Two kinematic jaws squeeze a ball without gravity. Once the ball is still, the jaws'
+// forces are equal and opposite within 5% (what the ball gets is their sum), and a deeper
+// squeeze presses harder.
+
+/// A jaw: a 1 cm thick plate, 12 cm square, its inner face at x = 0 before posing.
+Points jawPoints(double side) {
+  Points points = sampleBox(1200, {0.005, 0.06, 0.06}, side > 0 ? 5 : 6);
+  for (auto& p : points) p.x() += side * 0.005;
+  return points;
+}
+
+struct Squeeze {
+  Eigen::Vector3d left = Eigen::Vector3d::Zero();
+  Eigen::Vector3d right = Eigen::Vector3d::Zero();
+};
+
+/// The jaws' mean forces over the last 50 of 300 cycles, their faces `squeeze_m` inside the
+/// ball's surface each.
+Squeeze squeezeBall(DeformationMode mode, int level, double squeeze_m) {
+  SceneConfig config;
+  config.gravity_mps2.setZero();
+  config.contact_distance_m = 0.005;
+  config.level = level;
+  Scene scene(config);
+  const std::size_t ball = scene.addObject(ballConfig(mode), ballPoints(Eigen::Vector3d::Zero()));
+  ObjectConfig jaw;
+  jaw.kind = ObjectKind::kKinematic;
+  jaw.name = "left";
+  const std::size_t left = scene.addObject(jaw, jawPoints(-1.0));
+  jaw.name = "right";
+  const std::size_t right = scene.addObject(jaw, jawPoints(1.0));
+  Squeeze mean;
+  constexpr int kCycles = 300, kLate = 50;
+  for (int cycle = 0; cycle < kCycles; ++cycle) {
+    // The jaws close over the first 100 cycles.
+    const double closed = std::min(1.0, cycle / 100.0);
+    const double face = 0.05 + 0.02 - closed * (0.02 + squeeze_m);
+    scene.setPose(left, Eigen::Isometry3d(Eigen::Translation3d(-face, 0.0, 0.0)));
+    scene.setPose(right, Eigen::Isometry3d(Eigen::Translation3d(face, 0.0, 0.0)));
+    scene.cycle();
+    EXPECT_TRUE(allForcesFinite(scene.contacts()));
+    if (cycle < kCycles - kLate) continue;
+    mean.left += forceOn(scene.contacts(), left) / kLate;
+    mean.right += forceOn(scene.contacts(), right) / kLate;
+  }
+  EXPECT_LT(scene.body(ball).meanVelocity().norm(), 1e-3) << "the ball is not still";
+  return mean;
+}
+
+class SqueezeForceTest : public ::testing::TestWithParam<std::tuple<DeformationMode, int>> {};
+
+TEST_P(SqueezeForceTest, JawsPushEquallyAndHarderDeeper) {
+  const auto [mode, level] = GetParam();
+  const Squeeze shallow = squeezeBall(mode, level, 0.004);
+  const Squeeze deep = squeezeBall(mode, level, 0.010);
+  for (const Squeeze& s : {shallow, deep}) {
+    // Each jaw is pushed outwards.
+    EXPECT_LT(s.left.x(), 0.0);
+    EXPECT_GT(s.right.x(), 0.0);
+    EXPECT_LT((s.left + s.right).norm(), 0.05 * s.right.norm());
+  }
+  EXPECT_GT(deep.right.x(), 1.3 * shallow.right.x());
+  EXPECT_GT(-deep.left.x(), 1.3 * -shallow.left.x());
+}
+
+INSTANTIATE_TEST_SUITE_P(ModesAndLevels, SqueezeForceTest,
+                         ::testing::Combine(::testing::Values(DeformationMode::kLinear,
+                                                              DeformationMode::kQuadratic),
+                                            ::testing::Values(0, 2, -1)),
+                         [](const auto& info) {
+                           const int level = std::get<1>(info.param);
+                           return std::string(toString(std::get<0>(info.param))) +
+                                  (level < 0 ? std::string("_finest")
+                                             : "_level_" + std::to_string(level));
+                         });
+
+// ---------------------------------------------------------------------------------------
+// A tracked ball pressed by a kinematic probe: its contact force is its stiffness times the
+// indentation, grows in proportion to it, points away from the probe, and reads the same at
+// every level, within each contact's error bound of the finest level's.
+
+/// A 10 cm cube on a 5 mm grid, centred at the origin: its +x face lies at x = 0.05.
+Points cubePoints() {
+  Points points;
+  for (int i = -10; i <= 10; ++i) {
+    for (int j = -10; j <= 10; ++j) {
+      for (int k = -10; k <= 10; ++k) points.emplace_back(0.005 * i, 0.005 * j, 0.005 * k);
+    }
+  }
+  return points;
+}
+
+/// The cube as a 4 cm square probe pressing its +x face `depth_m` (< 5 mm) in leaves it.
+Points indented(double depth_m) {
+  Points points = cubePoints();
+  for (auto& p : points) {
+    if (std::abs(p.y()) <= 0.02 && std::abs(p.z()) <= 0.02) p.x() = std::min(p.x(), 0.05 - depth_m);
+  }
+  return points;
+}
+
+struct Pressed {
+  std::unique_ptr<Scene> scene;
+  std::size_t cube = 0;
+  std::size_t probe = 0;
+};
+
+/// A tracked cube (linear, 4 clusters) seen indented by a kinematic probe, half the contact
+/// distance off its face; one cycle.
+Pressed pressTrackedCube(double depth_m, double stiffness_n_per_m) {
+  SceneConfig config;
+  config.contact_distance_m = 0.004;
+  Pressed pressed{std::make_unique<Scene>(config)};
+  ObjectConfig cube = ballConfig(DeformationMode::kLinear, ObjectKind::kTracked);
+  cube.name = "cube";
+  cube.contact_stiffness_n_per_m = stiffness_n_per_m;
+  pressed.cube = pressed.scene->addObject(cube, cubePoints());
+  ObjectConfig probe;
+  probe.name = "probe";
+  probe.kind = ObjectKind::kKinematic;
+  Points plate = sampleBox(800, {0.005, 0.02, 0.02}, 9);
+  for (auto& p : plate) p.x() += 0.05 - depth_m + 0.005 + 0.5 * config.contact_distance_m;
+  pressed.probe = pressed.scene->addObject(probe, plate);
+  pressed.scene->observe(pressed.cube, indented(depth_m));
+  pressed.scene->cycle();
+  return pressed;
+}
+
+TEST(TrackedForceTest, FollowsTheIndentation) {
+  constexpr double kStiffness = 800.0;
+  for (const double depth : {0.002, 0.004}) {
+    SCOPED_TRACE("depth " + std::to_string(depth));
+    Pressed pressed = pressTrackedCube(depth, kStiffness);
+    const Eigen::Vector3d force = forceOn(pressed.scene->contacts(), pressed.cube);
+    // Pushed away from the probe, by k times the depth (the clusters' fitted poses follow
+    // the dent by a hair).
+    EXPECT_NEAR(-force.x(), kStiffness * depth, 0.05 * kStiffness * depth);
+    // Along the pair's mean normal, which the point pairs of a random plate tilt by degrees.
+    EXPECT_LT(force.tail<2>().norm(), 0.15 * force.norm());
+  }
+  // No stiffness, no force.
+  Pressed uncalibrated = pressTrackedCube(0.004, 0.0);
+  EXPECT_TRUE(forceOn(uncalibrated.scene->contacts(), uncalibrated.cube).isZero());
+}
+
+TEST(TrackedForceTest, EveryLevelWithinItsBoundOfTheFinest) {
+  Pressed pressed = pressTrackedCube(0.003, 500.0);
+  Scene& scene = *pressed.scene;
+  std::vector<SceneContact> finest;
+  scene.contactsAt(scene.maxLevel(), std::nullopt, std::nullopt, finest);
+  const Eigen::Vector3d finest_total = forceOn(finest, pressed.cube);
+  ASSERT_GT(finest_total.norm(), 1.0);
+  for (int level = 0; level < scene.maxLevel(); ++level) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    std::vector<SceneContact> contacts;
+    scene.contactsAt(level, std::nullopt, std::nullopt, contacts);
+    ASSERT_TRUE(allForcesFinite(contacts));
+    double bound = 0.0;
+    for (const SceneContact& c : contacts) bound += c.force_error_n;
+    EXPECT_LE((forceOn(contacts, pressed.cube) - finest_total).norm(), bound + 1e-9);
+  }
+}
+
+}  // namespace
+}  // namespace test
+}  // namespace deformable_collision
