@@ -164,6 +164,10 @@ void fillContactArray(const Scene& scene, const std::vector<SceneContact>& conta
     to.normal.z = from.contact.normal.z();
     to.depth = from.contact.depth_m;
     to.error_bound_m = from.contact.error_bound_m;
+    to.force_n.x = from.force_n.x();
+    to.force_n.y = from.force_n.y();
+    to.force_n.z = from.force_n.z();
+    to.force_error_n = from.force_error_n;
   }
 }
 

@@ -1,11 +1,14 @@
 #include "deformable_collision/ros/deformable_collision_node.h"
 
+#include <geometry_msgs/WrenchStamped.h>
+
 #include <boost/bind/bind.hpp>
 #include <boost/make_shared.hpp>
 
 #include <algorithm>
 
 #include "deformable_collision/core/common/point_spacing.h"
+#include "deformable_collision/core/response/contact_totals.h"
 #include "deformable_collision/ros/cloud_transform.h"
 #include "deformable_collision/ros/contact_array_serialization.h"
 
@@ -106,6 +109,10 @@ void DeformableCollisionNode::connect() {
     named_objects_.push_back({slot.params.object.name, std::nullopt});
     slot.deformed.advertise<sensor_msgs::PointCloud2>(cycle_private_handle,
                                                       "deformed/" + slot.params.object.name, 1);
+    if (slot.params.object.kind == ObjectKind::kKinematic) {
+      slot.wrench.advertise<geometry_msgs::WrenchStamped>(cycle_private_handle,
+                                                          "wrench/" + slot.params.object.name, 10);
+    }
     // A ConstPtr callback: a cloud published in this process (a driver's nodelet in the
     // same manager) arrives as the publisher's shared pointer, never serialised.
     slot.subscriber = reader_handle.subscribe<sensor_msgs::PointCloud2>(
@@ -332,6 +339,8 @@ void DeformableCollisionNode::runCycle() {
   times.contacts_published_ros = ros::Time::now();
   const std::optional<Clock::time_point> oldest_input = recordLatencies(times);
   outputs_.publishMarkers(scene_, config_.markers_colliding_only, header);
+  outputs_.publishForces(scene_, config_.force_marker_scale_m_per_n, header);
+  publishWrenches(header.stamp);
   const std::size_t points = publishDeformed(header);
   times.published = Clock::now();
   publishStats(header, times, oldest_input, points);
@@ -366,6 +375,25 @@ std::optional<DeformableCollisionNode::Clock::time_point> DeformableCollisionNod
   }
   outputs_.latencies().closePeriodIfDue(times.contacts_published);
   return oldest_input;
+}
+
+// What a force-torque sensor at the object's frame would read of its soft contacts.
+void DeformableCollisionNode::publishWrenches(const ros::Time& stamp) {
+  for (const ObjectSlot& slot : slots_) {
+    if (!slot.index || !slot.last_pose || !slot.wrench.subscribed()) continue;
+    const Wrench wrench =
+        wrenchOn(scene_.contacts(), static_cast<std::uint32_t>(*slot.index), *slot.last_pose);
+    geometry_msgs::WrenchStamped message;
+    message.header.stamp = stamp;
+    message.header.frame_id = slot.params.follow_frame;
+    message.wrench.force.x = wrench.force_n.x();
+    message.wrench.force.y = wrench.force_n.y();
+    message.wrench.force.z = wrench.force_n.z();
+    message.wrench.torque.x = wrench.torque_nm.x();
+    message.wrench.torque.y = wrench.torque_nm.y();
+    message.wrench.torque.z = wrench.torque_nm.z();
+    slot.wrench.publish(message);
+  }
 }
 
 std::size_t DeformableCollisionNode::publishDeformed(const std_msgs::Header& header) {

@@ -103,6 +103,8 @@ class DeformableCollisionNode {
   ros::Time newestAppliedStamp() const;
   /// The arrival of the oldest cloud applied for this cycle, and each such cloud's latencies.
   std::optional<Clock::time_point> recordLatencies(const CycleTimes& times);
+  /// Publishes the subscribed ~wrench/<object> of the kinematic objects, in their frames.
+  void publishWrenches(const ros::Time& stamp);
   /// Publishes the subscribed ~deformed/<object> clouds; returns the points of all objects.
   std::size_t publishDeformed(const std_msgs::Header& header);
   void publishStats(const std_msgs::Header& header, const CycleTimes& times,

@@ -293,6 +293,19 @@ void readShapeMatching(ParamReader& read, ShapeMatchingConfig& shape) {
       read.number("cluster_overlap_ratio", shape.cluster_overlap_ratio, 0.0, 1.0);
 }
 
+/// A tracked object's force per metre of indentation: other kinds' forces come from the
+/// simulation (dynamic) or from their partners.
+void readContactStiffness(ParamReader& read, ObjectConfig& object) {
+  object.contact_stiffness_n_per_m =
+      read.number("contact_stiffness_n_per_m", object.contact_stiffness_n_per_m, 0.0, 1e9);
+  if (object.contact_stiffness_n_per_m > 0.0 && object.kind != ObjectKind::kTracked) {
+    ParamReader::fail(read.name("contact_stiffness_n_per_m"),
+                      std::string("is read only by tracked objects (on_cloud track or "
+                                  "register), not a ") +
+                          toString(object.kind) + " one");
+  }
+}
+
 /// One entry of `objects`, read in the order of its checks, so that the first problem of an
 /// entry is the one reported.
 ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
@@ -315,6 +328,7 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
   readModel(read, params);
   object.shape.mode = object.kind == ObjectKind::kKinematic ? DeformationMode::kRigid : mode.mode;
   readShapeMatching(read, object.shape);
+  readContactStiffness(read, object);
   read.finish();
   return params;
 }
@@ -459,6 +473,8 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
     ParamReader markers_read(*markers, "markers");
     config.markers_colliding_only =
         markers_read.flag("colliding_only", config.markers_colliding_only);
+    config.force_marker_scale_m_per_n =
+        markers_read.number("force_scale_m_per_n", config.force_marker_scale_m_per_n, 0.0, 1e3);
     markers_read.finish();
   }
 

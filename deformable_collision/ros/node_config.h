@@ -78,6 +78,8 @@ struct NodeConfig {
   /// coordinate that far is a sensor's garbage, not an object.
   double max_coordinate_m = 1e4;
   bool markers_colliding_only = false;
+  /// ~contact_markers: metres of a force's segment per newton.
+  double force_marker_scale_m_per_n = 0.01;
   /// dt_s, gravity_mps2, level (or `auto` and cycle_budget_ms), contact_distance_m,
   /// friction, tree, register.
   SceneConfig scene;

@@ -19,6 +19,7 @@ void NodeOutputs::advertise(ros::NodeHandle& handle) {
   contacts_publisher_.advertise<ContactArray>(handle, "contacts", 10);
   hierarchy_publisher_.advertise<visualization_msgs::MarkerArray>(handle, "hierarchy", 1);
   stats_publisher_.advertise<Stats>(handle, "stats", 10);
+  forces_.advertise(handle);
 }
 
 void NodeOutputs::publishContacts(const Scene& scene, const std_msgs::Header& header) {

@@ -14,12 +14,14 @@
 #include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/ros/cloud_latencies.h"
 #include "deformable_collision/ros/counted_publisher.h"
+#include "deformable_collision/ros/force_outputs.h"
 #include "deformable_collision/ros/hierarchy_markers.h"
 
 namespace deformable_collision {
 
-/// The node's outputs of each cycle: ~contacts, ~hierarchy and ~stats, each built only while
-/// someone subscribes, and the latencies ~stats reports. Used by the cycle's thread alone.
+/// The node's outputs of each cycle: ~contacts, ~hierarchy, ~contact_summary,
+/// ~contact_markers and ~stats, each built only while someone subscribes, and the latencies
+/// ~stats reports. Used by the cycle's thread alone.
 class NodeOutputs {
  public:
   using Clock = std::chrono::steady_clock;
@@ -47,11 +49,15 @@ class NodeOutputs {
   NodeOutputs(Clock::time_point start, Clock::duration cycle_period)
       : cycle_period_(cycle_period), latencies_(start) {}
 
-  /// Advertises the three topics on `handle`, whose queue must be the cycle's: the cycle
-  /// alone counts their subscribers (CountedPublisher).
+  /// Advertises the topics on `handle`, whose queue must be the cycle's: the cycle alone
+  /// counts their subscribers (CountedPublisher).
   void advertise(ros::NodeHandle& handle);
   /// ~contacts: the scene's contacts of its last cycle.
   void publishContacts(const Scene& scene, const std_msgs::Header& header);
+  /// ~contact_summary and ~contact_markers of the last cycle's contacts.
+  void publishForces(const Scene& scene, double scale_m_per_n, const std_msgs::Header& header) {
+    forces_.publish(scene, scale_m_per_n, header);
+  }
   /// ~hierarchy: the spheres of the last cycle's level.
   void publishMarkers(Scene& scene, bool colliding_only, const std_msgs::Header& header);
   CloudLatencies& latencies() { return latencies_; }
@@ -79,6 +85,7 @@ class NodeOutputs {
   CountedPublisher hierarchy_publisher_;
   CountedPublisher stats_publisher_;
   HierarchyMarkers markers_;
+  ForceOutputs forces_;
   CloudLatencies latencies_;
   Stats stats_message_;
   /// The last ~contacts message, filled again in place while nobody else holds it.

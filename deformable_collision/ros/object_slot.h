@@ -23,6 +23,7 @@ struct ObjectSlot {
   ObjectParams params;
   ros::Subscriber subscriber;
   CountedPublisher deformed;
+  CountedPublisher wrench;  ///< Kinematic objects: ~wrench/<object>.
   /// Set by the cycle once the object is in the scene.
   std::atomic<bool> exists{false};
   /// Guarded by the reader's report mutex: the last report of a dropped cloud, and the

@@ -181,6 +181,11 @@ TEST_F(ContactServiceTest, GetContactsAtANamedLevelAnswersAtThatLevel) {
       // The core's bound, carried as it is: 0 at the leaves, a sphere's radius or more above.
       EXPECT_EQ(contact.error_bound_m, core[k].contact.error_bound_m);
       EXPECT_TRUE(std::isfinite(contact.error_bound_m));
+      // The force, the last cycle's pair force shared among these contacts, carried as is.
+      EXPECT_EQ(contact.force_n.x, core[k].force_n.x());
+      EXPECT_EQ(contact.force_n.y, core[k].force_n.y());
+      EXPECT_EQ(contact.force_n.z, core[k].force_n.z());
+      EXPECT_EQ(contact.force_error_n, core[k].force_error_n);
       if (core[k].contact.point_a != SphereContact::kNoPoint) {
         EXPECT_EQ(contact.error_bound_m, 0.0);
       } else {

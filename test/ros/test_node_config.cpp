@@ -50,6 +50,7 @@ XmlRpcValue validParams() {
   objects[3]["dynamic"] = false;
   objects[3]["on_cloud"] = "track";
   objects[3]["mode"] = "rigid";
+  objects[3]["contact_stiffness_n_per_m"] = 350.0;
   return params;
 }
 
@@ -89,6 +90,7 @@ TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
   EXPECT_EQ(config.objects[2].follow_frame, "gripper_link");
   EXPECT_EQ(config.objects[3].object.kind, ObjectKind::kTracked);
   EXPECT_EQ(config.objects[3].on_cloud, OnCloud::kTrack);
+  EXPECT_DOUBLE_EQ(config.objects[3].object.contact_stiffness_n_per_m, 350.0);
 }
 
 TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
@@ -102,6 +104,8 @@ TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
   EXPECT_EQ(config.scene.level, -1);
   EXPECT_EQ(config.objects[0].object.kind, ObjectKind::kDynamic);
   EXPECT_EQ(config.objects[0].object.shape.mode, DeformationMode::kLinear);
+  EXPECT_DOUBLE_EQ(config.objects[0].object.contact_stiffness_n_per_m, 0.0);
+  EXPECT_DOUBLE_EQ(config.force_marker_scale_m_per_n, 0.01);
 }
 
 struct BadParamCase {
@@ -156,6 +160,10 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"CoordinateBoundAsString", [](XmlRpcValue& p) { p["max_coordinate_m"] = "far"; }, "max_coordinate_m must be a number"},
         BadParamCase{"ZeroPointLimit", [](XmlRpcValue& p) { p["max_points_per_object"] = 0; }, "max_points_per_object"},
         BadParamCase{"MisspeltTopLevel", [](XmlRpcValue& p) { p["contact_distance"] = 0.1; }, "contact_distance is not a known"},
+        BadParamCase{"NegativeForceScale", [](XmlRpcValue& p) { p["markers"]["force_scale_m_per_n"] = -1.0; }, "markers.force_scale_m_per_n = -1"},
+        BadParamCase{"NegativeContactStiffness", [](XmlRpcValue& p) { p["objects"][3]["contact_stiffness_n_per_m"] = -5.0; }, "objects[3].contact_stiffness_n_per_m = -5"},
+        BadParamCase{"ContactStiffnessOfDynamic", [](XmlRpcValue& p) { p["objects"][1]["contact_stiffness_n_per_m"] = 100.0; }, "objects[1].contact_stiffness_n_per_m is read only by tracked objects (on_cloud track or register), not a dynamic one"},
+        BadParamCase{"ContactStiffnessOfKinematic", [](XmlRpcValue& p) { p["objects"][2]["contact_stiffness_n_per_m"] = 100.0; }, "objects[2].contact_stiffness_n_per_m is read only by tracked objects"},
         BadParamCase{"MisspeltMarkers", [](XmlRpcValue& p) { p["markers"]["coliding_only"] = true; }, "markers.coliding_only"},
         BadParamCase{"NoObjects", [](XmlRpcValue& p) {
           XmlRpcValue none; none.setSize(0); p["objects"] = none; }, "objects must be a non-empty list"},
@@ -200,7 +208,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"CycleOnAllAsString", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["cycle_on_all"] = "yes"; }, "cycle_on_all must be true or false"},
         BadParamCase{"StepFromStampsWithTimer", [](XmlRpcValue& p) { p["dt_s"] = "stamp"; }, "dt_s = 'stamp' needs cycle_on: clouds"},
         BadParamCase{"StepAsAnotherWord", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["dt_s"] = "fast"; }, "dt_s = 'fast' must be a number in (0, 0.1] or 'stamp'"},
-        BadParamCase{"CloudsWithoutTrackedObject", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["objects"][3]["on_cloud"] = "ignore"; }, "cycle_on = 'clouds' needs an object with on_cloud: track or register"}),
+        BadParamCase{"CloudsWithoutTrackedObject", [](XmlRpcValue& p) { p["cycle_on"] = "clouds"; p["objects"][3]["on_cloud"] = "ignore"; p["objects"][3]["contact_stiffness_n_per_m"] = 0.0; }, "cycle_on = 'clouds' needs an object with on_cloud: track or register"}),
     [](const auto& info) { return info.param.name; });
 
 /// A `level` (absent: std::nullopt) and a `cycle_budget_ms` (absent: std::nullopt), and

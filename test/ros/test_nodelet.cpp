@@ -5,12 +5,16 @@
 #include <ros/ros.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 
+#include <algorithm>
 #include <cmath>
 #include <deque>
 #include <functional>
 #include <map>
 
+#include <geometry_msgs/WrenchStamped.h>
+
 #include "deformable_collision/ContactArray.h"
+#include "deformable_collision/ContactSummaryArray.h"
 #include "deformable_collision/GetContacts.h"
 #include "deformable_collision/SetLevel.h"
 #include "deformable_collision/Stats.h"
@@ -438,6 +442,78 @@ TEST_F(NodeletTest, KinematicObjectFollowsItsFrame) {
   const Eigen::Vector3d moved_origin = kJawOrigin + Eigen::Vector3d(0.0, 0.1, 0.02);
   tf_broadcaster_.sendTransform(jawFrame(moved_origin));
   EXPECT_TRUE(waitFor([&] { return jawAt(moved_origin); })) << "the jaw stayed where it was";
+}
+
+/// The pad: a tracked slab 1 cm off the jaw's +x face (x = 0.54 with the jaw at kJawOrigin).
+Points padPoints() { return grid(3, 9, 9, 0.01, {0.56, 0.0, 0.1}); }
+/// The pad as a camera sees it with the jaw pressing 5 mm into the middle of its face.
+Points pressedPadPoints() {
+  Points points = padPoints();
+  for (auto& p : points) {
+    if (p.x() < 0.551 && std::abs(p.y()) <= 0.0201 && std::abs(p.z() - 0.1) <= 0.0201) {
+      p.x() += 0.005;
+    }
+  }
+  return points;
+}
+
+// A tracked pad with contact_stiffness_n_per_m: 200 seen pressed 5 mm by the jaw: the jaw, a
+// kinematic object, reads about 1 N as a force-torque sensor in its frame would
+// (~wrench/jaw), and ~contact_summary reports the pair with the same force in the same cycle.
+TEST_F(NodeletTest, KinematicObjectReadsItsContactForces) {
+  std::vector<geometry_msgs::WrenchStamped::ConstPtr> wrenches;
+  std::vector<ContactSummaryArray::ConstPtr> summaries;
+  ros::Subscriber wrench_subscriber = handle_.subscribe<geometry_msgs::WrenchStamped>(
+      kNode + "/wrench/jaw", 100,
+      boost::function<void(const geometry_msgs::WrenchStamped::ConstPtr&)>(
+          [&](const geometry_msgs::WrenchStamped::ConstPtr& m) { wrenches.push_back(m); }));
+  ros::Subscriber summary_subscriber = handle_.subscribe<ContactSummaryArray>(
+      kNode + "/contact_summary", 100,
+      boost::function<void(const ContactSummaryArray::ConstPtr&)>(
+          [&](const ContactSummaryArray::ConstPtr& m) { summaries.push_back(m); }));
+  // The only test that publishes the pad: advertised once in the program.
+  ros::Publisher pad = handle_.advertise<PointCloud2>("/test/pad", 10);
+  ASSERT_TRUE(waitFor([&] {
+    return wrench_subscriber.getNumPublishers() > 0 && summary_subscriber.getNumPublishers() > 0 &&
+           pad.getNumSubscribers() > 0;
+  }));
+  // The pressed cloud only once the first has set the rest shape: a newer cloud would replace
+  // it before a cycle took it.
+  ASSERT_TRUE(waitFor([&] { return stats_ != nullptr; }));
+  const std::uint32_t objects_before = stats_->objects;
+  pad.publish(cloudOf(padPoints(), "world"));
+  ASSERT_TRUE(waitFor([&] { return stats_->objects > objects_before; }));
+  pad.publish(cloudOf(pressedPadPoints(), "world"));
+  const auto pressed = [](const geometry_msgs::WrenchStamped::ConstPtr& w) {
+    return w->wrench.force.x < -0.5;
+  };
+  ASSERT_TRUE(waitFor([&] { return std::any_of(wrenches.begin(), wrenches.end(), pressed); }))
+      << "the jaw read no force";
+  const auto wrench = *std::find_if(wrenches.begin(), wrenches.end(), pressed);
+  EXPECT_EQ(wrench->header.frame_id, "test_jaw");
+  EXPECT_NEAR(wrench->wrench.force.x, -200.0 * 0.005, 0.2);
+  ASSERT_TRUE(waitFor([&] {
+    return !summaries.empty() && summaries.back()->header.stamp >= wrench->header.stamp;
+  }));
+  const auto same_cycle = std::find_if(summaries.begin(), summaries.end(), [&](const auto& s) {
+    return s->header.stamp == wrench->header.stamp;
+  });
+  ASSERT_NE(same_cycle, summaries.end());
+  const auto pair = std::find_if((*same_cycle)->pairs.begin(), (*same_cycle)->pairs.end(),
+                                 [](const ContactSummary& p) {
+                                   return (p.object_a == "jaw" && p.object_b == "pad") ||
+                                          (p.object_a == "pad" && p.object_b == "jaw");
+                                 });
+  ASSERT_NE(pair, (*same_cycle)->pairs.end());
+  const double sign = pair->object_a == "jaw" ? 1.0 : -1.0;
+  EXPECT_GT(pair->contacts, 0u);
+  EXPECT_GT(pair->area_m2, 0.0);
+  // The frame is not turned: the wrench's force is the summary's, in the same axes.
+  EXPECT_NEAR(sign * pair->force_n.x, wrench->wrench.force.x, 1e-9);
+  EXPECT_NEAR(sign * pair->force_n.y, wrench->wrench.force.y, 1e-9);
+  EXPECT_NEAR(sign * pair->force_n.z, wrench->wrench.force.z, 1e-9);
+  // Pressed on its +x face, about its origin: little torque about x.
+  EXPECT_LT(std::abs(wrench->wrench.torque.x), 0.01);
 }
 
 /// Spheres of one object as a client decodes ~hierarchy: centre = point, radius = scale / 2.
