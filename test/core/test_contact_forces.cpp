@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <numeric>
@@ -264,6 +265,95 @@ TEST(TrackedForceTest, EveryLevelWithinItsBoundOfTheFinest) {
     double bound = 0.0;
     for (const SceneContact& c : contacts) bound += c.force_error_n;
     EXPECT_LE((forceOn(contacts, pressed.cube) - finest_total).norm(), bound + 1e-9);
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Self-consistency: a soft cube simulated against a wall and pressed by a probe, then seen
+// by a camera as a tracked copy of itself between the same wall and probe, with the stiffness
+// the probe calibrated at 3 mm: at 2, 6 and 8 mm the copy's force on the probe agrees with
+// the simulation's within 20%.
+
+struct SqueezedCube {
+  double force_n = 0.0;  ///< On the probe, along x.
+  Points points;         ///< The cube at rest between the wall and the probe.
+};
+
+/// A kinematic object's face at x = `side` (0.05 - squeeze_m), posed: `squeeze_m` inside the
+/// cube's face, less half the contact distance the response keeps.
+Eigen::Isometry3d jawPose(double side, double squeeze_m) {
+  return Eigen::Isometry3d(Eigen::Translation3d(side * (0.05 - squeeze_m), 0.0, 0.0));
+}
+
+/// A wall (a full jaw) behind the cube's -x face and a 4 cm square probe on its +x face,
+/// both kinematic.
+std::array<std::size_t, 2> addJaws(Scene& scene) {
+  ObjectConfig jaw;
+  jaw.kind = ObjectKind::kKinematic;
+  jaw.name = "wall";
+  const std::size_t wall = scene.addObject(jaw, jawPoints(-1.0));
+  jaw.name = "probe";
+  Points probe = sampleBox(600, {0.005, 0.02, 0.02}, 8);
+  for (auto& p : probe) p.x() += 0.005;
+  return {wall, scene.addObject(jaw, probe)};
+}
+
+SceneConfig squeezeConfig() {
+  SceneConfig config;
+  config.gravity_mps2.setZero();
+  config.contact_distance_m = 0.004;
+  return config;
+}
+
+/// The dynamic cube (linear, 8 clusters) pressed `squeeze_m` by the probe and the wall, once
+/// at rest: the probe's mean force over the last 100 of 600 cycles.
+SqueezedCube simulateSqueezedCube(double squeeze_m) {
+  Scene scene(squeezeConfig());
+  ObjectConfig cube = ballConfig(DeformationMode::kLinear);
+  cube.shape.clusters = 8;
+  cube.shape.damping = 0.3;
+  const std::size_t index = scene.addObject(cube, cubePoints());
+  const auto [wall, probe] = addJaws(scene);
+  SqueezedCube squeezed;
+  constexpr int kCycles = 600, kLate = 100;
+  for (int cycle = 0; cycle < kCycles; ++cycle) {
+    const double closing = squeeze_m * std::min(1.0, cycle / 150.0) - 0.002;
+    scene.setPose(wall, jawPose(-1.0, closing));
+    scene.setPose(probe, jawPose(1.0, closing));
+    scene.cycle();
+    if (cycle >= kCycles - kLate) squeezed.force_n += forceOn(scene.contacts(), probe).x() / kLate;
+  }
+  squeezed.points = scene.body(index).positions();
+  return squeezed;
+}
+
+/// The force on the probe of a tracked copy of the cube seen as `points`.
+double trackedForce(const Points& points, double squeeze_m, double stiffness_n_per_m) {
+  Scene scene(squeezeConfig());
+  ObjectConfig cube = ballConfig(DeformationMode::kLinear, ObjectKind::kTracked);
+  cube.shape.clusters = 8;
+  cube.contact_stiffness_n_per_m = stiffness_n_per_m;
+  const std::size_t index = scene.addObject(cube, cubePoints());
+  const auto [wall, probe] = addJaws(scene);
+  scene.setPose(wall, jawPose(-1.0, squeeze_m - 0.002));
+  scene.setPose(probe, jawPose(1.0, squeeze_m - 0.002));
+  scene.observe(index, points);
+  scene.cycle();
+  return forceOn(scene.contacts(), probe).x();
+}
+
+TEST(SelfConsistencyTest, TrackedCopyReadsTheSimulatedForce) {
+  // A probe's calibration: the simulated force at 3 mm over the copy's force at unit
+  // stiffness there.
+  const SqueezedCube calibration = simulateSqueezedCube(0.003);
+  ASSERT_GT(calibration.force_n, 0.0);
+  const double stiffness = calibration.force_n / trackedForce(calibration.points, 0.003, 1.0);
+  ASSERT_TRUE(std::isfinite(stiffness) && stiffness > 0.0);
+  for (const double squeeze : {0.002, 0.006, 0.008}) {
+    SCOPED_TRACE("squeeze " + std::to_string(squeeze));
+    const SqueezedCube simulated = simulateSqueezedCube(squeeze);
+    const double tracked = trackedForce(simulated.points, squeeze, stiffness);
+    EXPECT_NEAR(tracked, simulated.force_n, 0.2 * simulated.force_n);
   }
 }
 
