@@ -1,10 +1,12 @@
 // Contact forces (ContactForces, through the Scene) as physics, not wiring: a body resting on
-// a floor presses it with its weight at every level and in every deformation mode, two jaws
-// squeezing a body push it equally and oppositely and harder the deeper they squeeze, and a
-// tracked body's force follows its indentation.
+// a floor presses it with its weight at every level and in every deformation mode, a floor
+// carries the whole stack on it, two jaws squeezing a body push it equally and oppositely and
+// harder the deeper they squeeze, a tracked body's force follows its indentation, and a
+// tracked copy of a simulated body reads the simulation's force.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <memory>
@@ -102,6 +104,45 @@ INSTANTIATE_TEST_SUITE_P(ModesAndLevels, RestingForceTest,
                          [](const auto& info) {
                            return std::string(toString(std::get<0>(info.param))) + "_level_" +
                                   std::to_string(std::get<1>(info.param));
+                         });
+
+// ---------------------------------------------------------------------------------------
+// A stack of rigid 1 kg boxes on the floor: each box's contacts hold up its own weight, and
+// the floor carries the whole stack, though shock propagation lets each box act as fixed for
+// the one above it.
+
+class StackForceTest : public ::testing::TestWithParam<std::tuple<int, int>> {};
+
+TEST_P(StackForceTest, FloorCarriesTheStack) {
+  const auto [boxes, level] = GetParam();
+  auto scene = sceneOnFloor(level);
+  ObjectConfig box = droppedBoxConfig();
+  for (int n = 0; n < boxes; ++n) {
+    box.name = "box" + std::to_string(n);
+    Points points = sampleBox(2000, {0.05, 0.05, 0.05}, 3 + n);
+    for (auto& p : points) p.z() += 0.06 + 0.11 * n;
+    scene->addObject(box, points);
+  }
+  if (level >= 0) scene->setLevel(std::min(level, scene->maxLevel()));
+  constexpr int kCycles = 300, kLate = 50;
+  std::vector<Eigen::Vector3d> late(boxes + 1, Eigen::Vector3d::Zero());
+  for (int cycle = 0; cycle < kCycles; ++cycle) {
+    scene->cycle();
+    if (cycle < kCycles - kLate) continue;
+    for (int o = 0; o <= boxes; ++o) late[o] += forceOn(scene->contacts(), o) / kLate;
+  }
+  const double weight = 9.81;
+  EXPECT_NEAR(-late[0].z(), boxes * weight, 0.05 * boxes * weight) << "the floor";
+  for (int o = 1; o <= boxes; ++o) EXPECT_NEAR(late[o].z(), weight, 0.05 * weight) << "box " << o;
+}
+
+INSTANTIATE_TEST_SUITE_P(BoxesAndLevels, StackForceTest,
+                         ::testing::Combine(::testing::Values(2, 3), ::testing::Values(0, 2, -1)),
+                         [](const auto& info) {
+                           const int level = std::get<1>(info.param);
+                           return std::to_string(std::get<0>(info.param)) + "_boxes_" +
+                                  (level < 0 ? std::string("finest")
+                                             : "level_" + std::to_string(level));
                          });
 
 // ---------------------------------------------------------------------------------------

@@ -76,13 +76,22 @@ std::size_t ContactResponse::respond() {
   // (closer than the contact distance) and are still held apart.
   ++cycle_count_;
   points_displaced_ = 0;
-  for (ContactRun& run : contact_runs_) run.impulse_ns.setZero();
+  for (ContactRun& run : contact_runs_) {
+    run.impulse_ns.setZero();
+    for (const std::uint32_t index : {run.object_a, run.object_b}) {
+      Object& object = *objects_[index];
+      object.carried_impulse.setZero();
+      object.support_impulse = 0.0;
+      object.supports = 0;
+    }
+  }
   readMeanVelocities();
   rankSupport();
   for (auto& object : objects_) object->contact_memory.forgetBefore(cycle_count_);
   resolvePairs();
   repeatVelocityExchanges();
   stopApproachToFixedPartners();
+  passCarriedImpulsesDown();
   for (const ContactRun& run : contact_runs_) {
     for (const std::uint32_t index : {run.object_a, run.object_b}) {
       Object& object = *objects_[index];
@@ -221,10 +230,47 @@ void ContactResponse::exchangeVelocity(const VelocityExchange& exchange) {
   if (a.dynamic()) a.velocity_change += exchange.share_a * change;
   if (b.dynamic()) b.velocity_change -= (1.0 - exchange.share_a) * change;
   // An object nearer to the support acts as fixed (share 0 or 1): the momentum is what the
-  // moving one took.
-  contact_runs_[exchange.run].impulse_ns +=
+  // moving one took, and the one acting as fixed carries it on to its own supports.
+  const Eigen::Vector3d impulse =
       exchange.share_a > 0.0 ? Eigen::Vector3d(a.body.config().mass_kg * exchange.share_a * change)
                              : Eigen::Vector3d(b.body.config().mass_kg * change);
+  contact_runs_[exchange.run].impulse_ns += impulse;
+  if (exchange.share_a == 0.0 && a.dynamic()) a.carried_impulse += impulse;
+  if (exchange.share_a == 1.0 && b.dynamic()) b.carried_impulse -= impulse;
+}
+
+bool ContactResponse::supportsFrom(const ContactRun& run, std::uint32_t& upper,
+                                   std::uint32_t& lower) const {
+  const Object& a = *objects_[run.object_a];
+  const Object& b = *objects_[run.object_b];
+  if (!run.support_link || a.support_depth == b.support_depth) return false;
+  upper = a.support_depth > b.support_depth ? run.object_a : run.object_b;
+  lower = upper == run.object_a ? run.object_b : run.object_a;
+  return objects_[upper]->dynamic();
+}
+
+// Pairs come in resolve_order_ from the supports up; walked backwards, every pair that hands
+// momentum to an object comes before the pairs under it, which hand it on. Each support takes
+// a share by the momentum it already gave the object (equal shares if none).
+void ContactResponse::passCarriedImpulsesDown() {
+  std::uint32_t upper = 0, lower = 0;
+  for (const ContactRun& run : contact_runs_) {
+    if (!supportsFrom(run, upper, lower)) continue;
+    Object& object = *objects_[upper];
+    object.support_impulse += run.impulse_ns.norm();
+    ++object.supports;
+  }
+  for (auto r = resolve_order_.rbegin(); r != resolve_order_.rend(); ++r) {
+    ContactRun& run = contact_runs_[*r];
+    if (!supportsFrom(run, upper, lower)) continue;
+    const Object& object = *objects_[upper];
+    const double share = object.support_impulse > 0.0
+                             ? run.impulse_ns.norm() / object.support_impulse
+                             : 1.0 / object.supports;
+    const Eigen::Vector3d handed = share * object.carried_impulse;
+    addImpulse(*r, object, -handed);
+    if (objects_[lower]->dynamic()) objects_[lower]->carried_impulse += handed;
+  }
 }
 
 void ContactResponse::addImpulse(std::uint32_t run, const Object& object,

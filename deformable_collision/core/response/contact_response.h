@@ -106,6 +106,12 @@ class ContactResponse {
   void moveByFixedPartners();
   /// Passes over the pairs' velocities after the first (velocity_exchanges_).
   void repeatVelocityExchanges();
+  /// Hands the momentum each dynamic object took as fixed (carried_impulse) down to its
+  /// supports' runs, from the top of the support ranking to the fixed objects: a floor
+  /// carries the whole stack on it.
+  void passCarriedImpulsesDown();
+  /// Whether the run links its object a or b (`upper`) to a partner nearer to a support.
+  bool supportsFrom(const ContactRun& run, std::uint32_t& upper, std::uint32_t& lower) const;
   /// Stops a pair's approach (or, where it sticks, its sliding) along the exchange's normal,
   /// shared by its share_a.
   void exchangeVelocity(const VelocityExchange& exchange);

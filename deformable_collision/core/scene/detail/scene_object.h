@@ -69,6 +69,13 @@ struct SceneObject {
   /// The response (Scene's cycle count) mean_velocity was read for: once per object, however
   /// many pairs it is in.
   std::uint64_t mean_velocity_cycle = 0;
+  /// Dynamic objects: the momentum the pairs gave it where it acted as fixed (shock
+  /// propagation), which its velocity never took; its supports carry it (contact forces).
+  Eigen::Vector3d carried_impulse = Eigen::Vector3d::Zero();
+  /// Dynamic objects: the size of the momentum its supports gave it, over all of them, and
+  /// how many they are: how the carried momentum is shared among them.
+  double support_impulse = 0.0;
+  std::uint32_t supports = 0;
   /// Objects in contact: mean velocity once velocity_change is applied.
   Eigen::Vector3d velocity_after = Eigen::Vector3d::Zero();
 };
