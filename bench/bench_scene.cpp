@@ -21,6 +21,12 @@
 //     Three objects (19k points) at the finest level, stage by stage, with the conversion
 //     of every object's points to a PointCloud2 as the node publishes them. -> s3.csv,
 //     baselines.csv
+//   forces results_dir [cycles=300]
+//     The cost of contact forces: the pile (S2, finest level, settled 150 cycles) and the
+//     gripper (driven as the demo drives it) run `cycles` cycles with contact_forces on, with
+//     the pair summaries and every kinematic object's wrench, and the same cycles with it off,
+//     each from a fresh build of the scene, in turns of a tenth of the cycles: the mean whole
+//     cycle of each and their ratio. -> forces.csv
 //   memory scene results_dir [cycles=150]
 //     Peak resident memory of a built-in scene (two_objects at 160k points, as S1's
 //     largest, or pile, three_objects at their default count) -> memory.csv
@@ -29,6 +35,7 @@
 #include <sensor_msgs/PointCloud2.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -41,6 +48,7 @@
 
 #include "bench/bench_common.h"
 #include "deformable_collision/core/hierarchy/bounding_sphere.h"
+#include "deformable_collision/core/response/contact_totals.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 
@@ -442,6 +450,67 @@ int runS3(const std::string& results_dir, int settle, int cycles) {
   return 0;
 }
 
+/// One of the forces benchmark's two runs of a scene: its state, time and cycle count.
+struct ForcesRun {
+  std::unique_ptr<dc::Scene> scene;
+  bool forces = true;
+  int cycles = 0;
+  double ms = 0.0;
+  std::vector<dc::PairSummary> summaries;
+};
+
+ForcesRun startForcesRun(dc::DemoScene kind, bool forces, int settle) {
+  dc::SceneConfig config;
+  config.contact_forces = forces;
+  ForcesRun run{dc::makeDemoScene(kind, 0, config), forces};
+  for (int c = 0; c < settle; ++c) {
+    dc::driveDemoScene(kind, *run.scene, c * run.scene->config().dt_s);
+    run.scene->cycle();
+  }
+  return run;
+}
+
+/// `cycles` more cycles of the run: with forces, what a node makes of them too.
+void continueForcesRun(dc::DemoScene kind, ForcesRun& run, int settle, int cycles) {
+  dc::Scene& scene = *run.scene;
+  for (int c = 0; c < cycles; ++c, ++run.cycles) {
+    dc::driveDemoScene(kind, scene, (settle + run.cycles) * scene.config().dt_s);
+    const auto start = db::Clock::now();
+    scene.cycle();
+    if (run.forces) {
+      dc::summarizePairs(scene.contacts(), run.summaries);
+      for (std::uint32_t o = 0; o < scene.objectCount(); ++o) {
+        if (scene.objectConfig(o).kind != dc::ObjectKind::kKinematic) continue;
+        const dc::Wrench wrench = dc::wrenchOn(scene.contacts(), o, Eigen::Isometry3d::Identity());
+        if (!wrench.force_n.allFinite()) std::abort();
+      }
+    }
+    run.ms += db::millisecondsSince(start);
+  }
+}
+
+int runForces(const std::string& results_dir, int cycles) {
+  db::CsvAppender csv(results_dir + "/forces.csv",
+                      "scene,level,cycles,with_forces_ms,without_forces_ms,ratio");
+  constexpr int kSettle = 150;
+  for (const dc::DemoScene kind : {dc::DemoScene::kPile, dc::DemoScene::kGripper}) {
+    std::array<ForcesRun, 2> runs{startForcesRun(kind, true, kSettle),
+                                  startForcesRun(kind, false, kSettle)};
+    const int turn = std::max(1, cycles / 10);
+    for (int done = 0; done < cycles; done += turn) {
+      for (ForcesRun& run : runs) continueForcesRun(kind, run, kSettle, turn);
+    }
+    const double with_ms = runs[0].ms / runs[0].cycles;
+    const double without_ms = runs[1].ms / runs[1].cycles;
+    const int level = runs[0].scene->level();
+    std::printf("forces %s level %d: %.4f ms a cycle with forces, %.4f without: %.3fx\n",
+                dc::toString(kind), level, with_ms, without_ms, with_ms / without_ms);
+    std::fprintf(csv.file(), "%s,%d,%d,%.5f,%.5f,%.4f\n", dc::toString(kind), level, runs[0].cycles,
+                 with_ms, without_ms, with_ms / without_ms);
+  }
+  return 0;
+}
+
 int runMemory(const std::string& name, const std::string& results_dir, int cycles) {
   const auto kind = dc::parseDemoScene(name);
   if (!kind) {
@@ -475,10 +544,11 @@ int main(int argc, char** argv) {
   if (mode == "s2" && argc > 2) return runS2(argv[2], intArg(3, 150), intArg(4, 100));
   if (mode == "s3" && argc > 2) return runS3(argv[2], intArg(3, 150), intArg(4, 100));
   if (mode == "memory" && argc > 3) return runMemory(argv[2], argv[3], intArg(4, 150));
-  std::fprintf(
-      stderr,
-      "usage: bench_scene s2 results_dir [settle=150] [cycles=100]\n"
-      "       bench_scene s3 results_dir [settle=150] [cycles=100]\n"
-      "       bench_scene memory two_objects|pile|three_objects results_dir [cycles=150]\n");
+  if (mode == "forces" && argc > 2) return runForces(argv[2], intArg(3, 300));
+  std::fprintf(stderr,
+               "usage: bench_scene s2 results_dir [settle=150] [cycles=100]\n"
+               "       bench_scene s3 results_dir [settle=150] [cycles=100]\n"
+               "       bench_scene memory two_objects|pile|three_objects results_dir [cycles=150]\n"
+               "       bench_scene forces results_dir [cycles=300]\n");
   return 2;
 }

@@ -2,8 +2,8 @@
 """Writes the benchmark report from the files of scripts/run_benchmarks.
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s2_auto.csv,
-s2_rest.csv, s3.csv, baselines.csv, memory.csv and registration.txt there; writes s1.md,
-s2.md, s3.md, memory.md, registration.md, summary.md (headline figures and the targets, met
+s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv and registration.txt there; writes
+s1.md, s2.md, s3.md, forces.md, memory.md, registration.md, summary.md (headline figures and the targets, met
 or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
 registration_error_vs_time.png. When RESULTS_DIR is the package's bench/results, it also
 writes docs/benchmarks.md (bench/benchmarks_intro.md, then those tables and plots, and
@@ -361,6 +361,32 @@ def s3_report(results):
     return {r["stage"]: float(r["ms"]) for r in rows}
 
 
+def forces_report(results):
+    """forces.md from forces.csv, and its rows; None if the run has no forces.csv."""
+    if not os.path.exists(os.path.join(results, "forces.csv")):
+        return None
+    rows = read(results, "forces.csv")
+    text = "# Contact forces: what they add to a cycle\n\n"
+    text += ("Each scene built twice, contact_forces on and off, settled 150 cycles and run in "
+             "turns of a tenth of the cycles; with forces, each cycle also summarises the pairs "
+             "and takes every kinematic object's wrench, as the node does for its subscribers. "
+             "The whole cycle, shape matching included.\n\n")
+    text += table(["scene", "level", "cycles", "with forces ms", "without ms", "ratio"],
+                  [(r["scene"], r["level"], r["cycles"], f"{float(r['with_forces_ms']):.4f}",
+                    f"{float(r['without_forces_ms']):.4f}", f"{float(r['ratio']):.3f}")
+                   for r in rows])
+    write(results, "forces.md", text)
+    return rows
+
+
+def forces_targets(forces):
+    """The forces' target rows: at most 10% more whole-cycle time."""
+    return [(f"Contact forces, {r['scene']}: whole cycle at most 1.10x the cycle without",
+             f"{float(r['with_forces_ms']):.4f} / {float(r['without_forces_ms']):.4f} ms = "
+             f"{float(r['ratio']):.3f}x",
+             "**met**" if float(r["ratio"]) <= 1.10 else "**not met**") for r in forces or []]
+
+
 def memory_report(results):
     rows = read(results, "memory.csv")
     text = "# Memory: peak resident memory per scene\n\n"
@@ -528,7 +554,7 @@ def auto_target(auto):
             "**met**" if within >= 0.95 and most > 1 else "**not met**")
 
 
-def targets_table(results, sizes, ms, methods, s2_rows, s3):
+def targets_table(results, sizes, ms, methods, s2_rows, s3, forces):
     """The issue's targets, met or not."""
     largest, smallest = sizes[-1], sizes[0]
     near = {(p, m): v for (d, p, m), v in ms.items() if d == NEAR_MISS_M}
@@ -559,6 +585,7 @@ def targets_table(results, sizes, ms, methods, s2_rows, s3):
         auto_target(read(results, "s2_auto.csv")[0]),
         ("S3: whole cycle <= 1 ms", f"{s3_cycle:.3f} ms (with the PointCloud2 conversion)",
          verdict(s3_cycle <= 1)),
+        *forces_targets(forces),
     ])
 
 
@@ -634,12 +661,14 @@ def doc_section(results, name, note="", plot=None):
     return text
 
 
-def benchmarks_doc(results, registration):
+def benchmarks_doc(results, registration, forces):
     """docs/benchmarks.md: the fixed introduction, then every table and plot of this run."""
     sections = [doc_section(results, "summary.md"),
                 doc_section(results, "s1.md", plot="s1_time_vs_points.png"),
                 doc_section(results, "s2.md", plot="s2_error_vs_time.png"),
                 doc_section(results, "s3.md")]
+    if forces:
+        sections.append(doc_section(results, "forces.md"))
     if registration:
         sections.append(doc_section(results, "registration.md",
                                     plot="registration_error_vs_time.png"))
@@ -677,14 +706,15 @@ def main():
     sizes, ms, methods = s1_report(results)
     s2_rows = s2_report(results)
     s3 = s3_report(results)
+    forces = forces_report(results)
     memory_report(results)
     registration = read_registration(results)
     if registration:
         registration_report(results, registration)
     headline = headline_table(sizes, ms, methods, s2_rows, s3, registration)
-    summary(results, headline, targets_table(results, sizes, ms, methods, s2_rows, s3))
+    summary(results, headline, targets_table(results, sizes, ms, methods, s2_rows, s3, forces))
     for name in ["summary.md", "s1.md", "s2.md", "s3.md", "memory.md"] + \
-            (["registration.md"] if registration else []):
+            (["forces.md"] if forces else []) + (["registration.md"] if registration else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
     print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "
@@ -693,7 +723,7 @@ def main():
     if os.path.realpath(results) != os.path.realpath(os.path.join(PACKAGE, "bench", "results")):
         print(f"report: {results} is not bench/results; docs/benchmarks.md and README.md left alone")
         return
-    benchmarks_doc(results, registration)
+    benchmarks_doc(results, registration, forces)
     print("report: docs/benchmarks.md written")
     if not readme_block(headline):
         print("report: README.md has no results markers; left alone")

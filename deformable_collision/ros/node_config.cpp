@@ -456,6 +456,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   scene.contact_distance_m =
       read.number("contact_distance_m", scene.contact_distance_m, 0.0, 1e6, true);
   scene.friction = read.number("friction", scene.friction, 0.0, 1e3);
+  scene.contact_forces = read.flag("contact_forces", scene.contact_forces);
   if (const XmlRpcValue* tree = read.find("tree")) {
     ParamReader tree_read(*tree, "tree");
     scene.tree.leaf_size =

@@ -96,6 +96,16 @@ std::vector<int> restingLevels() {
   return levels;
 }
 
+TEST(RestingForceTest, NoneWhenSwitchedOff) {
+  SceneConfig config;
+  config.contact_forces = false;
+  auto scene = sceneOnFloor(-1, config);
+  scene->addObject(ballConfig(DeformationMode::kLinear), ballPoints({0.0, 0.0, 0.06}));
+  for (int cycle = 0; cycle < 50; ++cycle) scene->cycle();
+  ASSERT_FALSE(scene->contacts().empty());
+  for (const SceneContact& c : scene->contacts()) EXPECT_TRUE(c.force_n.isZero());
+}
+
 INSTANTIATE_TEST_SUITE_P(ModesAndLevels, RestingForceTest,
                          ::testing::Combine(::testing::Values(DeformationMode::kRigid,
                                                               DeformationMode::kLinear,

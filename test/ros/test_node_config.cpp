@@ -34,6 +34,8 @@ XmlRpcValue validParams() {
   params["gravity_mps2"][1] = 0.0;
   params["gravity_mps2"][2] = -1.62;
   params["markers"]["colliding_only"] = true;
+  params["markers"]["force_scale_m_per_n"] = 0.05;
+  params["contact_forces"] = false;
   XmlRpcValue& objects = params["objects"];
   objects[0] = object("floor", "/floor/points");
   objects[0]["dynamic"] = false;
@@ -73,6 +75,8 @@ TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
   EXPECT_DOUBLE_EQ(config.max_coordinate_m, 500.0);
   EXPECT_TRUE(config.scene.gravity_mps2.isApprox(Eigen::Vector3d(0, 0, -1.62)));
   EXPECT_TRUE(config.markers_colliding_only);
+  EXPECT_DOUBLE_EQ(config.force_marker_scale_m_per_n, 0.05);
+  EXPECT_FALSE(config.scene.contact_forces);
   ASSERT_EQ(config.objects.size(), 4u);
 
   EXPECT_EQ(config.objects[0].object.kind, ObjectKind::kStatic);
@@ -106,6 +110,7 @@ TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
   EXPECT_EQ(config.objects[0].object.shape.mode, DeformationMode::kLinear);
   EXPECT_DOUBLE_EQ(config.objects[0].object.contact_stiffness_n_per_m, 0.0);
   EXPECT_DOUBLE_EQ(config.force_marker_scale_m_per_n, 0.01);
+  EXPECT_TRUE(config.scene.contact_forces);
 }
 
 struct BadParamCase {

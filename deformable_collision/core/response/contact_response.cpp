@@ -91,7 +91,7 @@ std::size_t ContactResponse::respond() {
   resolvePairs();
   repeatVelocityExchanges();
   stopApproachToFixedPartners();
-  passCarriedImpulsesDown();
+  if (config_.contact_forces) passCarriedImpulsesDown();
   for (const ContactRun& run : contact_runs_) {
     for (const std::uint32_t index : {run.object_a, run.object_b}) {
       Object& object = *objects_[index];
@@ -325,13 +325,13 @@ void ContactResponse::applyObjectResponse(Object& object) {
     // The points make the move in the next step's pass over them.
     object.body.deferRigidMove(object.translation, object.velocity_change);
   } else {
-    sumDentImpulses(object);
+    if (config_.contact_forces) sumDentImpulses(object);
     const RigidMotion motion = object.body.rigidMotion();
     const Sphere& bound = object.tree.sphere(0);
     const detail::RigidVelocityChange balance = object.dents.balanceVelocityChanges(
         object.body.positions(), motion, object.body.pointMassKg(),
         (bound.center - motion.center).norm() + bound.radius);
-    addDentImpulses(object, balance.paid);
+    if (config_.contact_forces) addDentImpulses(object, balance.paid);
     object.body.moveRigidly(object.translation, object.velocity_change - balance.velocity,
                             -balance.spin, balance.center + object.translation);
     points_displaced_ += object.dents.displacements.size();

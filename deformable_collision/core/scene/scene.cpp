@@ -276,7 +276,7 @@ void Scene::cycle() {
   const auto detected = Clock::now();
 
   stats_.points_displaced = response_.respond();
-  forces_.assign(contacts_, contact_runs_, config_.dt_s);
+  if (config_.contact_forces) forces_.assign(contacts_, contact_runs_, config_.dt_s);
   // Queries between cycles see the state after the response.
   refreshStaleTrees();
   const auto responded = Clock::now();
@@ -394,7 +394,7 @@ void Scene::contactsAt(int level, std::optional<std::size_t> object_a,
   refreshStaleTrees();
   contacts.clear();
   detect(level, object_a, object_b, contacts, nullptr);
-  forces_.assignQueried(contacts, contact_runs_, config_.dt_s);
+  if (config_.contact_forces) forces_.assignQueried(contacts, contact_runs_, config_.dt_s);
   stats_ = kept;
   query_counters_ = kept_counters;
 }

@@ -65,6 +65,9 @@ struct SceneConfig {
   /// Coulomb friction coefficient (>= 0) between touching objects: the sliding speed of a
   /// pair drops by at most this times the approach speed the contact stops.
   double friction = 0.5;
+  /// Each cycle's contacts get their forces (ContactForces); false: force_n stays zero and
+  /// the response keeps no account of them.
+  bool contact_forces = true;
   SphereTreeConfig tree;
   RegistrationConfig registration;  ///< Of tracked objects' unordered clouds (registerCloud).
 };
