@@ -9,51 +9,26 @@
 #include <stdexcept>
 #include <string>
 
-#include "deformable_collision/core/common/nearest_point_index.h"
+#include "surface_test_support.h"
 
 namespace deformable_collision {
 namespace {
 
 using Points = std::vector<Eigen::Vector3d>;
+using test::Surface;
 
 /// Rounding allowed in "on the surface" and "within the spacing", relative to the shape.
 constexpr double kRounding = 1e-12;
-constexpr int kSurfaceProbes = 20000;
 
-/// One shape of the table: how the sampler samples it, how far a point is from its true
-/// surface, and a point drawn uniformly from that surface.
+/// One shape of the table: how the sampler samples it and its true surface.
 struct ShapeCase {
   std::string name;
   double spacing_m;
   std::function<Points(const SurfaceSampling&)> sample;
-  std::function<double(const Eigen::Vector3d&)> distance;
-  std::function<Eigen::Vector3d(std::mt19937&)> draw;
+  Surface surface;
   /// The expected count, from the shape's area over a square of the spacing (loosely).
   std::size_t min_points, max_points;
 };
-
-double uniform(std::mt19937& random, double low = 0.0, double high = 1.0) {
-  return std::uniform_real_distribution<double>(low, high)(random);
-}
-
-// ---- Box -------------------------------------------------------------------------------
-
-double boxDistance(const Eigen::Vector3d& half, const Eigen::Vector3d& p) {
-  const Eigen::Vector3d outside = (p.cwiseAbs() - half).cwiseMax(0.0);
-  if (outside.squaredNorm() > 0.0) return outside.norm();
-  return (half - p.cwiseAbs()).minCoeff();
-}
-
-Eigen::Vector3d drawOnBox(const Eigen::Vector3d& half, std::mt19937& random) {
-  const Eigen::Vector3d area(half.y() * half.z(), half.z() * half.x(), half.x() * half.y());
-  double pick = uniform(random, 0.0, area.sum());
-  int axis = 0;
-  while (axis < 2 && pick > area[axis]) pick -= area[axis++];
-  Eigen::Vector3d p;
-  for (int i = 0; i < 3; ++i) p[i] = uniform(random, -half[i], half[i]);
-  p[axis] = uniform(random) < 0.5 ? -half[axis] : half[axis];
-  return p;
-}
 
 ShapeCase boxCase(const std::string& name, const Eigen::Vector3d& size, double spacing,
                   std::size_t low, std::size_t high) {
@@ -61,31 +36,10 @@ ShapeCase boxCase(const std::string& name, const Eigen::Vector3d& size, double s
   return {name,
           spacing,
           [size](const SurfaceSampling& s) { return sampleBoxSurface(size, s); },
-          [half](const Eigen::Vector3d& p) { return boxDistance(half, p); },
-          [half](std::mt19937& r) { return drawOnBox(half, r); },
+          {[half](const Eigen::Vector3d& p) { return test::boxDistance(half, p); },
+           [half](std::mt19937& r) { return test::drawOnBox(half, r); }},
           low,
           high};
-}
-
-// ---- Cylinder --------------------------------------------------------------------------
-
-double cylinderDistance(double radius, double length, const Eigen::Vector3d& p) {
-  const double rho = p.head<2>().norm(), h = length / 2.0;
-  const double side = std::abs(rho - radius), cap = std::abs(std::abs(p.z()) - h);
-  if (std::abs(p.z()) <= h && rho <= radius) return std::min(side, cap);
-  return std::hypot(std::max(rho - radius, 0.0), std::max(std::abs(p.z()) - h, 0.0));
-}
-
-Eigen::Vector3d drawOnCylinder(double radius, double length, std::mt19937& random) {
-  const double side_area = 2.0 * M_PI * radius * length, cap_area = M_PI * radius * radius;
-  const double angle = uniform(random, 0.0, 2.0 * M_PI);
-  if (uniform(random, 0.0, side_area + 2.0 * cap_area) < side_area) {
-    return {radius * std::cos(angle), radius * std::sin(angle),
-            uniform(random, -length / 2, length / 2)};
-  }
-  const double rho = radius * std::sqrt(uniform(random));
-  return {rho * std::cos(angle), rho * std::sin(angle),
-          uniform(random) < 0.5 ? -length / 2 : length / 2};
 }
 
 ShapeCase cylinderCase(const std::string& name, double radius, double length, double spacing,
@@ -93,77 +47,21 @@ ShapeCase cylinderCase(const std::string& name, double radius, double length, do
   return {name,
           spacing,
           [=](const SurfaceSampling& s) { return sampleCylinderSurface(radius, length, s); },
-          [=](const Eigen::Vector3d& p) { return cylinderDistance(radius, length, p); },
-          [=](std::mt19937& r) { return drawOnCylinder(radius, length, r); },
+          {[=](const Eigen::Vector3d& p) { return test::cylinderDistance(radius, length, p); },
+           [=](std::mt19937& r) { return test::drawOnCylinder(radius, length, r); }},
           low,
           high};
 }
-
-// ---- Sphere ----------------------------------------------------------------------------
 
 ShapeCase sphereCase(const std::string& name, double radius, double spacing, std::size_t low,
                      std::size_t high) {
-  auto draw = [radius](std::mt19937& random) {
-    std::normal_distribution<double> normal;
-    Eigen::Vector3d d(normal(random), normal(random), normal(random));
-    return Eigen::Vector3d(radius * d.normalized());
-  };
   return {name,
           spacing,
           [=](const SurfaceSampling& s) { return sampleSphereSurface(radius, s); },
-          [=](const Eigen::Vector3d& p) { return std::abs(p.norm() - radius); },
-          draw,
+          {[=](const Eigen::Vector3d& p) { return std::abs(p.norm() - radius); },
+           [=](std::mt19937& r) { return test::drawOnSphere(radius, r); }},
           low,
           high};
-}
-
-// ---- Mesh ------------------------------------------------------------------------------
-
-/// Distance from p to triangle abc (Ericson, Real-Time Collision Detection, 5.1.5).
-double triangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
-                        const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return (p - a).norm();
-  const Eigen::Vector3d bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return (p - b).norm();
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + d1 / (d1 - d3) * ab)).norm();
-  const Eigen::Vector3d cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return (p - c).norm();
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + d2 / (d2 - d6) * ac)).norm();
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    return (p - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).norm();
-  }
-  const double denominator = 1.0 / (va + vb + vc);
-  return (p - (a + ab * vb * denominator + ac * vc * denominator)).norm();
-}
-
-double meshDistance(const TriangleMesh& mesh, const Eigen::Vector3d& p) {
-  double best = std::numeric_limits<double>::infinity();
-  for (const auto& t : mesh.triangles) {
-    best = std::min(
-        best, triangleDistance(p, mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]));
-  }
-  return best;
-}
-
-Eigen::Vector3d drawOnMesh(const TriangleMesh& mesh, std::mt19937& random) {
-  std::vector<double> areas;
-  for (const auto& t : mesh.triangles) {
-    const Eigen::Vector3d& a = mesh.vertices[t[0]];
-    areas.push_back((mesh.vertices[t[1]] - a).cross(mesh.vertices[t[2]] - a).norm());
-  }
-  std::discrete_distribution<std::size_t> pick(areas.begin(), areas.end());
-  const auto& t = mesh.triangles[pick(random)];
-  double u = uniform(random), v = uniform(random);
-  if (u + v > 1.0) u = 1.0 - u, v = 1.0 - v;
-  const Eigen::Vector3d& a = mesh.vertices[t[0]];
-  return a + u * (mesh.vertices[t[1]] - a) + v * (mesh.vertices[t[2]] - a);
 }
 
 /// A finger-like closed wedge (a triangular prism, 3 cm long, sides split into two
@@ -185,8 +83,8 @@ ShapeCase meshCase(const std::string& name, double spacing, std::size_t low, std
   return {name,
           spacing,
           [mesh](const SurfaceSampling& s) { return sampleMeshSurface(mesh, s); },
-          [mesh](const Eigen::Vector3d& p) { return meshDistance(mesh, p); },
-          [mesh](std::mt19937& r) { return drawOnMesh(mesh, r); },
+          {[mesh](const Eigen::Vector3d& p) { return test::meshDistance(mesh, p); },
+           [mesh](std::mt19937& r) { return test::drawOnMesh(mesh, r); }},
           low,
           high};
 }
@@ -207,23 +105,6 @@ std::vector<ShapeCase> shapeCases() {
           meshCase("mesh_1mm", 0.001, 1500, 15000)};
 }
 
-/// The largest distance from a point drawn on the shape's surface to its nearest sample, over
-/// kSurfaceProbes such points (a fixed seed).
-double farthestProbe(const ShapeCase& shape, const Points& points) {
-  NearestPointIndex index;
-  index.build(points);
-  std::mt19937 random(57);
-  double worst = 0.0;
-  for (int i = 0; i < kSurfaceProbes; ++i) {
-    const Eigen::Vector3d probe = shape.draw(random);
-    EXPECT_LE(shape.distance(probe), 1e-9) << "the probe is on the surface";
-    NearestPointIndex::Nearest nearest;
-    EXPECT_TRUE(index.nearest(probe, nearest));
-    worst = std::max(worst, std::sqrt(nearest.squared_distance_m2));
-  }
-  return worst;
-}
-
 class SurfaceSamplingTest : public ::testing::TestWithParam<ShapeCase> {};
 
 TEST_P(SurfaceSamplingTest, EveryPointLiesOnTheSurface) {
@@ -231,7 +112,7 @@ TEST_P(SurfaceSamplingTest, EveryPointLiesOnTheSurface) {
   const Points points = shape.sample({shape.spacing_m, 1000000});
   ASSERT_FALSE(points.empty());
   for (std::size_t i = 0; i < points.size(); ++i) {
-    ASSERT_LE(shape.distance(points[i]), kRounding)
+    ASSERT_LE(shape.surface.distance(points[i]), kRounding)
         << "point " << i << ": " << points[i].transpose();
   }
 }
@@ -239,10 +120,17 @@ TEST_P(SurfaceSamplingTest, EveryPointLiesOnTheSurface) {
 TEST_P(SurfaceSamplingTest, EverySurfacePointIsWithinTheSpacingOfASample) {
   const ShapeCase& shape = GetParam();
   const Points points = shape.sample({shape.spacing_m, 1000000});
-  const double worst = farthestProbe(shape, points);
+  const double worst = test::farthestProbe(shape.surface, points);
   EXPECT_LE(worst, shape.spacing_m * (1.0 + kRounding));
   std::printf("[ MEASURED ] %s: %zu points, farthest probe %.3f of the spacing\n",
               shape.name.c_str(), points.size(), worst / shape.spacing_m);
+}
+
+TEST_P(SurfaceSamplingTest, TheProbesLieOnTheSurface) {
+  const ShapeCase& shape = GetParam();
+  std::mt19937 random(57);
+  for (int i = 0; i < 1000; ++i)
+    ASSERT_LE(shape.surface.distance(shape.surface.draw(random)), 1e-9);
 }
 
 TEST_P(SurfaceSamplingTest, CountIsAboutTheAreaOverTheSpacingSquared) {
@@ -279,12 +167,13 @@ INSTANTIATE_TEST_SUITE_P(Shapes, SurfaceSamplingTest, ::testing::ValuesIn(shapeC
 
 TEST(SurfaceSampling, TheCoverageCheckCatchesSparseOrMissingSamples) {
   const ShapeCase shape = boxCase("box", {0.02, 0.01, 0.04}, 0.004, 0, 0);
-  EXPECT_GT(farthestProbe(shape, shape.sample({2.0 * shape.spacing_m, 1000000})), shape.spacing_m);
+  EXPECT_GT(test::farthestProbe(shape.surface, shape.sample({2.0 * shape.spacing_m, 1000000})),
+            shape.spacing_m);
   Points without_top = shape.sample({shape.spacing_m, 1000000});
   without_top.erase(std::remove_if(without_top.begin(), without_top.end(),
                                    [](const Eigen::Vector3d& p) { return p.z() > 0.0199; }),
                     without_top.end());
-  EXPECT_GT(farthestProbe(shape, without_top), shape.spacing_m);
+  EXPECT_GT(test::farthestProbe(shape.surface, without_top), shape.spacing_m);
 }
 
 TEST(SurfaceSampling, BadArgumentsAreRefusedNamingThem) {
