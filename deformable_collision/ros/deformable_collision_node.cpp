@@ -75,6 +75,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
   taken_slots_.reserve(slots_.size());
   applied_slots_.reserve(slots_.size());
   loadModels();
+  loadRobotLinks();
   models_waiting_ = std::any_of(slots_.begin(), slots_.end(),
                                 [](const ObjectSlot& slot) { return !slot.model_points.empty(); });
 
@@ -106,6 +107,7 @@ void DeformableCollisionNode::connect() {
     named_objects_.push_back({slot.params.object.name, std::nullopt});
     slot.deformed.advertise<sensor_msgs::PointCloud2>(cycle_private_handle,
                                                       "deformed/" + slot.params.object.name, 1);
+    if (slot.params.topic.empty()) continue;  // A robot link: no cloud.
     // A ConstPtr callback: a cloud published in this process (a driver's nodelet in the
     // same manager) arrives as the publisher's shared pointer, never serialised.
     slot.subscriber = reader_handle.subscribe<sensor_msgs::PointCloud2>(
