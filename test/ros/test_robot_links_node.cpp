@@ -2,7 +2,8 @@
 // become kinematic objects that follow the joint states this client publishes (through
 // robot_state_publisher's tf), and touch a static block between them only when closed; a
 // link missing from the description, and a missing description, leave the other objects
-// served. Every wait is on an event with a timeout.
+// served; a registered object's clouds leave the fingers' points out. Every wait is on an
+// event with a timeout.
 #include <gtest/gtest.h>
 #include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
@@ -25,6 +26,7 @@ using sensor_msgs::PointCloud2;
 
 const std::string kManager = "/robot_links_manager";
 const std::string kBlockTopic = "/robot_links_test/block";
+const std::string kCameraTopic = "/robot_links_test/camera";
 /// Open, the fingers' inner faces are at y = +-0.03, 2 cm from the block; closed, at
 /// y = +-0.008, inside the block's faces at +-0.01.
 constexpr double kOpen = 0.0;
@@ -41,13 +43,16 @@ class Publishers : public ::testing::Environment {
     ros::NodeHandle handle;
     joints = handle.advertise<sensor_msgs::JointState>("/joint_states", 10);
     block = handle.advertise<PointCloud2>(kBlockTopic, 2);
+    camera = handle.advertise<PointCloud2>(kCameraTopic, 2);
   }
   void TearDown() override {
     joints.shutdown();
     block.shutdown();
+    camera.shutdown();
   }
   ros::Publisher joints;
   ros::Publisher block;
+  ros::Publisher camera;
 };
 
 Publishers* publishers = nullptr;  ///< Owned by gtest, set in main().
@@ -62,9 +67,9 @@ void publishJoints(double q) {
 }
 
 /// A 2 cm cube of points every 2 mm, centred between the fingers.
-void publishBlock() {
-  publishers->block.publish(cloudOf(grid(11, 11, 11, 0.002, Eigen::Vector3d::Zero()), "base_link"));
-}
+Points cube() { return grid(11, 11, 11, 0.002, Eigen::Vector3d::Zero()); }
+
+void publishBlock() { publishers->block.publish(cloudOf(cube(), "base_link")); }
 
 /// Publishes the joints at `q` and the block every kPublishPeriodS until `done` or the
 /// timeout; returns `done()`.
@@ -82,16 +87,18 @@ bool whilePublishing(double q, const std::function<bool()>& done) {
   return finished;
 }
 
-/// The block (static) and the robot's fingers; `no_such_link` is not in the description.
-XmlRpc::XmlRpcValue nodeParams(const std::string& description_param) {
+/// The block (static; or registered from the camera's clouds) and the robot's fingers;
+/// `no_such_link` is not in the description.
+XmlRpc::XmlRpcValue nodeParams(const std::string& description_param, bool registered = false) {
   XmlRpc::XmlRpcValue params;
   params["fixed_frame"] = "base_link";
   params["rate_hz"] = 50;
   params["contact_distance_m"] = 0.003;
   XmlRpc::XmlRpcValue& block = params["objects"][0];
   block["name"] = "block";
-  block["topic"] = kBlockTopic;
+  block["topic"] = registered ? kCameraTopic : kBlockTopic;
   block["dynamic"] = false;
+  if (registered) block["on_cloud"] = "register";
   XmlRpc::XmlRpcValue& robot = params["robot"];
   robot["description_param"] = description_param;
   robot["links"][0] = "left_finger";
@@ -115,7 +122,7 @@ class RobotLinksNodeTest : public ::testing::Test {
  protected:
   /// Loads `node` and waits until it has `objects` objects with a rest shape.
   void startNode(const std::string& node, const std::string& description_param,
-                 std::uint32_t objects) {
+                 std::uint32_t objects, bool registered = false) {
     node_ = node;
     stats_subscriber_ = handle_.subscribe<Stats>(
         node + "/stats", 10,
@@ -123,9 +130,12 @@ class RobotLinksNodeTest : public ::testing::Test {
           stats_ = stats;
           ++stats_received_;
         }));
-    ASSERT_TRUE(loadNodelet(node, nodeParams(description_param))) << "the nodelet did not start";
-    ASSERT_TRUE(whilePublishing(kOpen, [&] { return stats_ && stats_->objects == objects; }))
-        << "the objects were not made";
+    ASSERT_TRUE(loadNodelet(node, nodeParams(description_param, registered)))
+        << "the nodelet did not start";
+    ASSERT_TRUE(whilePublishing(kOpen, [&] {
+      if (registered) publishers->camera.publish(cloudOf(cube(), "base_link"));
+      return stats_ && stats_->objects == objects;
+    })) << "the objects were not made";
   }
 
   /// The finest level's contacts between `a` and `b` on the node's current state.
@@ -194,6 +204,26 @@ TEST_F(RobotLinksNodeTest, AMissingRobotDescriptionLeavesTheOtherObjectsServed) 
   const std::size_t received = stats_received_;
   EXPECT_TRUE(whilePublishing(kOpen, [&] { return stats_received_ >= received + 10; }))
       << "the node stopped cycling";
+}
+
+TEST_F(RobotLinksNodeTest, RegisteredCloudsLeaveTheFingersPointsOut) {
+  // The block registered from the camera, its model its first cloud: the cube.
+  ASSERT_NO_FATAL_FAILURE(startNode("/robot_links_register", "robot_description", 3, true));
+  // The camera also sees the open left finger's inner face (y = 0.03), 2 cm from the block:
+  // its points are the finger's, within the contact distance of its surface points.
+  Points seen = cube();
+  const Points face = grid(11, 1, 21, 0.002, Eigen::Vector3d(0.0, 0.03, 0.0));
+  seen.insert(seen.end(), face.begin(), face.end());
+  auto registered = [&] {
+    return !stats_->registrations.empty() && stats_->registrations[0].cloud_points == seen.size();
+  };
+  EXPECT_TRUE(whilePublishing(kOpen, [&] {
+    publishers->camera.publish(cloudOf(seen, "base_link"));
+    return registered();
+  })) << "no registration of the cloud with the face";
+  ASSERT_TRUE(registered());
+  // The face's points and only those: the block's are 2 cm from the finger.
+  EXPECT_EQ(stats_->registrations[0].excluded_points, face.size());
 }
 
 }  // namespace
