@@ -51,6 +51,21 @@ void addRing(double radius, double z, int count, Points& out) {
   }
 }
 
+/// A cylinder cap's points inside its rim: the centre and `radial` - 1 concentric rings.
+double capPoints(double radius, double radial, double spacing) {
+  double count = 1.0;
+  for (int k = 1; k < radial; ++k) count += ringPoints(radius * k / radial, spacing);
+  return count;
+}
+
+void addCap(double radius, double z, double radial, double spacing, Points& out) {
+  out.emplace_back(0.0, 0.0, z);
+  for (int k = 1; k < radial; ++k) {
+    const double ring = radius * k / radial;
+    addRing(ring, z, static_cast<int>(ringPoints(ring, spacing)), out);
+  }
+}
+
 /// (1 - t) a + t b, exactly a at t = 0 and b at t = 1, so that corners shared by triangles
 /// come out alike.
 Eigen::Vector3d mix(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double t) {
@@ -95,21 +110,15 @@ std::vector<Eigen::Vector3d> sampleCylinderSurface(double radius_m, double lengt
   const double radial = segments(radius_m, s);
   // Each cap ring holds a point at least: more rings than max_points cannot fit.
   checkCount(2.0 * radial, sampling, "the cylinder");
-  double cap = 1.0;
-  for (int k = 1; k < radial; ++k) cap += ringPoints(radius_m * k / radial, s);
-  checkCount((rings + 1.0) * around + 2.0 * cap, sampling, "the cylinder");
+  checkCount((rings + 1.0) * around + 2.0 * capPoints(radius_m, radial, s), sampling,
+             "the cylinder");
   Points points;
   for (int k = 0; k <= rings; ++k) {
     addRing(radius_m, length_m * (k / rings - 0.5), static_cast<int>(around), points);
   }
   // The caps' rims are the side's end rings.
-  for (const double z : {-0.5 * length_m, 0.5 * length_m}) {
-    points.emplace_back(0.0, 0.0, z);
-    for (int k = 1; k < radial; ++k) {
-      const double radius = radius_m * k / radial;
-      addRing(radius, z, static_cast<int>(ringPoints(radius, s)), points);
-    }
-  }
+  addCap(radius_m, -0.5 * length_m, radial, s, points);
+  addCap(radius_m, 0.5 * length_m, radial, s, points);
   return points;
 }
 
