@@ -8,25 +8,39 @@
 
 namespace deformable_collision {
 
+namespace {
+
+/// The robot description in parameter `param` of `handle`'s namespace; std::nullopt, with an
+/// error naming the parameter, if it is not set or not a URDF.
+std::optional<RobotLinks> readRobotDescription(const ros::NodeHandle& handle,
+                                               const std::string& param) {
+  std::string problem = " is not set or not text";
+  std::string urdf_xml;
+  if (handle.getParam(param, urdf_xml)) {
+    try {
+      return RobotLinks(urdf_xml);
+    } catch (const std::invalid_argument& e) {
+      problem = std::string(": ") + e.what();
+    }
+  }
+  ROS_ERROR("robot: parameter '%s' (robot.description_param)%s; no robot link is an object",
+            handle.resolveName(param).c_str(), problem.c_str());
+  return std::nullopt;
+}
+
+}  // namespace
+
 void DeformableCollisionNode::loadRobotLinks() {
   if (!config_.robot) return;
-  const std::string& param = config_.robot->description_param;
-  std::string urdf_xml;
-  std::optional<RobotLinks> robot;
-  try {
-    if (!node_handle_.getParam(param, urdf_xml)) throw std::invalid_argument("not set or not text");
-    robot.emplace(urdf_xml);
-  } catch (const std::exception& e) {
-    ROS_ERROR("robot: parameter '%s' (robot.description_param): %s; no robot link is an object",
-              node_handle_.resolveName(param).c_str(), e.what());
-    return;
-  }
+  const std::optional<RobotLinks> robot =
+      readRobotDescription(node_handle_, config_.robot->description_param);
+  if (!robot) return;
   const SurfaceSampling sampling{config_.robot->point_spacing_m, config_.max_points_per_object};
   for (ObjectSlot& slot : slots_) {
     if (slot.params.robot_link.empty()) continue;
     try {
       slot.model_points = robot->sampleSurface(slot.params.robot_link, sampling);
-    } catch (const std::exception& e) {
+    } catch (const std::invalid_argument& e) {
       ROS_ERROR("%s; it is not an object", e.what());
     }
   }

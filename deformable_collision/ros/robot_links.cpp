@@ -55,7 +55,8 @@ RobotLinks::RobotLinks(const std::string& urdf_xml) {
   model_ = model;
   if (!model->initString(urdf_xml)) {
     throw std::invalid_argument(
-        "not a URDF that urdf::Model parses (its reasons are logged above)");
+        "the robot description is not a URDF that urdf::Model parses (its reasons are logged "
+        "above)");
   }
 }
 
