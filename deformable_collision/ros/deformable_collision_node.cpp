@@ -107,9 +107,9 @@ void DeformableCollisionNode::connect() {
     named_objects_.push_back({slot.params.object.name, std::nullopt});
     slot.deformed.advertise<sensor_msgs::PointCloud2>(cycle_private_handle,
                                                       "deformed/" + slot.params.object.name, 1);
-    if (slot.params.topic.empty()) continue;  // A robot link: no cloud.
     // A ConstPtr callback: a cloud published in this process (a driver's nodelet in the
     // same manager) arrives as the publisher's shared pointer, never serialised.
+    if (slot.params.topic.empty()) continue;  // A robot link has no cloud.
     slot.subscriber = reader_handle.subscribe<sensor_msgs::PointCloud2>(
         slot.params.topic, 2,
         boost::bind(&CloudReader::onCloud, &reader_, boost::placeholders::_1, i),
