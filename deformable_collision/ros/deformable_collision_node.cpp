@@ -78,6 +78,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
   taken_slots_.reserve(slots_.size());
   applied_slots_.reserve(slots_.size());
   loadModels();
+  loadRobotLinks();
   models_waiting_ = std::any_of(slots_.begin(), slots_.end(),
                                 [](const ObjectSlot& slot) { return !slot.model_points.empty(); });
 
@@ -115,6 +116,7 @@ void DeformableCollisionNode::connect() {
     }
     // A ConstPtr callback: a cloud published in this process (a driver's nodelet in the
     // same manager) arrives as the publisher's shared pointer, never serialised.
+    if (slot.params.topic.empty()) continue;  // A robot link has no cloud.
     slot.subscriber = reader_handle.subscribe<sensor_msgs::PointCloud2>(
         slot.params.topic, 2,
         boost::bind(&CloudReader::onCloud, &reader_, boost::placeholders::_1, i),

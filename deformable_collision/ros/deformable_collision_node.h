@@ -78,6 +78,15 @@ class DeformableCollisionNode {
   bool placeModel(ObjectSlot& slot);
   /// Whether a model still waits for its frame.
   bool placeModels();
+  // The robot links (node_robot.cpp).
+  /// Samples each robot link's surface into its slot's model_points; a link that cannot be
+  /// sampled, or all of them without a robot description, are logged and left out.
+  void loadRobotLinks();
+  /// The latest pose of a robot link's frame; std::nullopt (logged, throttled) if tf has none.
+  std::optional<Eigen::Isometry3d> linkPose(const ObjectSlot& slot) const;
+  /// Creates a robot link's object from its surface at its frame's pose, once tf has it;
+  /// whether the object exists.
+  bool placeLink(ObjectSlot& slot);
   /// Fits a registered object to a cloud in fixed_frame; keeps the report for ~stats.
   void registerCloud(ObjectSlot& slot, const ReadCloud& cloud);
   /// Says that a registration held the model, at most once per 5 s per object.

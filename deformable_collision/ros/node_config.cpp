@@ -359,6 +359,74 @@ void readObjects(ParamReader& read, NodeConfig& config) {
   }
 }
 
+/// Entry `index` of robot.links: a URDF link name, which is also its tf frame.
+std::string readLinkName(const XmlRpcValue& links, int index) {
+  const std::string key = "robot.links[" + std::to_string(index) + "]";
+  const XmlRpcValue& entry = links[index];
+  if (entry.getType() != XmlRpcValue::TypeString) {
+    ParamReader::fail(key, std::string("must be a link name, got ") + typeName(entry.getType()));
+  }
+  const std::string link = static_cast<std::string>(entry);
+  if (link.empty()) ParamReader::fail(key, "is empty");
+  if (link[0] == '/') {
+    ParamReader::fail(key, "= '" + link + "' starts with '/', which tf2 refuses as its frame");
+  }
+  return link;
+}
+
+/// A robot link as an object: rigid, kinematic, following the link's frame.
+ObjectParams linkObject(const std::string& link) {
+  ObjectParams params;
+  params.robot_link = link;
+  params.follow_frame = link;
+  params.object.name = robotLinkObjectName(link);
+  params.object.kind = ObjectKind::kKinematic;
+  params.object.shape.mode = DeformationMode::kRigid;
+  return params;
+}
+
+/// robot.links: each listed once, each object name (the link's, mapped) used once among all
+/// objects.
+void readLinks(ParamReader& read, NodeConfig& config) {
+  const XmlRpcValue* links = read.find("links");
+  if (links == nullptr) ParamReader::fail("robot.links", "is missing: list the links to take");
+  if (links->getType() != XmlRpcValue::TypeArray || links->size() == 0) {
+    ParamReader::fail("robot.links", "must be a non-empty list of link names");
+  }
+  std::set<std::string> names;
+  for (const ObjectParams& object : config.objects) names.insert(object.object.name);
+  std::set<std::string> listed;
+  for (int i = 0; i < links->size(); ++i) {
+    const std::string key = "robot.links[" + std::to_string(i) + "]";
+    const std::string link = readLinkName(*links, i);
+    if (!listed.insert(link).second) ParamReader::fail(key, "= '" + link + "' is listed twice");
+    ObjectParams object = linkObject(link);
+    if (!names.insert(object.object.name).second) {
+      ParamReader::fail(key, "= '" + link + "' would be the object '" + object.object.name +
+                                 "', a name another object has");
+    }
+    config.objects.push_back(std::move(object));
+  }
+}
+
+/// The `robot` block, read after contact_distance_m (point_spacing_m's default) and objects.
+void readRobot(const XmlRpcValue& block, NodeConfig& config) {
+  ParamReader read(block, "robot");
+  RobotParams robot;
+  robot.description_param = read.text("description_param", robot.description_param);
+  std::string problem;
+  if (robot.description_param.empty()) ParamReader::fail("robot.description_param", "is empty");
+  if (!ros::names::validate(robot.description_param, problem)) {
+    ParamReader::fail("robot.description_param",
+                      "= '" + robot.description_param + "' is not a parameter name: " + problem);
+  }
+  robot.point_spacing_m =
+      read.number("point_spacing_m", config.scene.contact_distance_m, 0.0, 1e6, true);
+  readLinks(read, config);
+  read.finish();
+  config.robot = robot;
+}
+
 /// cycle_on and cycle_on_all; cycle_on_all only where clouds start the cycles.
 void readCycleOn(ParamReader& read, NodeConfig& config) {
   const std::string cycle_on = read.text("cycle_on", toString(config.cycle_on));
@@ -430,6 +498,15 @@ void checkCloudsStartCycles(const NodeConfig& config) {
 
 }  // namespace
 
+std::string robotLinkObjectName(const std::string& link) {
+  std::string name = link;
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '_') c = '_';
+  }
+  if (name.empty() || !std::isalpha(static_cast<unsigned char>(name[0]))) name = "link_" + name;
+  return name;
+}
+
 NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::string>& warnings) {
   ParamReader read(params, "");
   NodeConfig config;
@@ -480,6 +557,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   }
 
   readObjects(read, config);
+  if (const XmlRpcValue* robot = read.find("robot")) readRobot(*robot, config);
   checkCloudsStartCycles(config);
   read.finish();
   return config;

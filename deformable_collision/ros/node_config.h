@@ -49,10 +49,23 @@ struct ObjectParams {
   /// cloud's finite points; and the tf frame its coordinates are in (fixed_frame if unset).
   std::string model_file;
   std::string model_frame;
+  /// A link of the `robot` block: its URDF name. Its collision geometry's surface, in its
+  /// frame (follow_frame), is the rest shape; it has no topic.
+  std::string robot_link;
   /// Name, kind and shape matching. The kind follows from `dynamic`, `follow_frame` and
   /// `on_cloud`: dynamic; kinematic (follows a frame); tracked (on_cloud track or
   /// register); or static.
   ObjectConfig object;
+};
+
+/// The `robot` block: links of the robot description, each a kinematic object after those of
+/// `objects` (ObjectParams::robot_link).
+struct RobotParams {
+  /// The parameter holding the URDF, resolved in the node's namespace.
+  std::string description_param = "robot_description";
+  /// Every point of a link's surface lies within this of a sample: contact_distance_m unless
+  /// set, so that whatever touches the surface has a sample within the contact distance.
+  double point_spacing_m = 0.0;
 };
 
 /// Every parameter of the node, in SI units, validated.
@@ -84,14 +97,20 @@ struct NodeConfig {
   /// friction, tree, register.
   SceneConfig scene;
   std::vector<ObjectParams> objects;
+  std::optional<RobotParams> robot;
 };
 
 /// Fills a NodeConfig from the node's private parameters (a struct, as returned by
 /// getParam on the private namespace), checking every value before anything is used.
 /// Unknown keys are errors, so that a misspelt parameter is not silently replaced by its
 /// default. A key given by its deprecated name (dt, gravity) is read with one line in
-/// `warnings` naming the new key; both names at once are an error.
+/// `warnings` naming the new key; both names at once are an error. The links of `robot` are
+/// appended to `objects`, each named after its link (robotLinkObjectName()).
 /// @throw std::invalid_argument whose message names the parameter and says what is wrong.
 NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::string>& warnings);
+
+/// The object name of a robot link: its name with every character other than a letter, a
+/// digit or '_' replaced by '_', and "link_" before it unless it starts with a letter.
+std::string robotLinkObjectName(const std::string& link);
 
 }  // namespace deformable_collision

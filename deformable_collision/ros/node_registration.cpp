@@ -36,6 +36,7 @@ void DeformableCollisionNode::loadModels() {
 
 bool DeformableCollisionNode::placeModel(ObjectSlot& slot) {
   if (slot.model_points.empty()) return slot.index.has_value();
+  if (!slot.params.robot_link.empty()) return placeLink(slot);
   const ObjectParams& params = slot.params;
   std::optional<Eigen::Isometry3d> pose = Eigen::Isometry3d::Identity();
   if (params.model_frame != config_.fixed_frame) {

@@ -34,7 +34,8 @@ struct ObjectSlot {
   std::optional<std::size_t> index;            ///< In the scene, once a cloud set its rest shape.
   std::optional<Eigen::Isometry3d> last_pose;  ///< Kinematic objects.
   bool float64 = false;  ///< ~deformed/<object> in FLOAT64, like the last cloud.
-  /// on_cloud register: model_file's points in model_frame until tf places them, the last
+  /// on_cloud register: model_file's points in model_frame until tf places them (a robot
+  /// link: its surface in its frame until tf has that frame's pose), the last
   /// cloud's registration, and the clouds held since start and since the last report.
   std::vector<Eigen::Vector3d> model_points;
   RegistrationReport registration;

@@ -22,10 +22,11 @@ namespace {
 using XmlRpc::XmlRpcValue;
 
 // dt and gravity are the deprecated names of dt_s and gravity_mps2.
-const char* const kTopKeys[] = {
-    "fixed_frame", "rate_hz", "max_points_per_object", "dt_s",     "gravity_mps2", "dt",
-    "gravity",     "level",   "contact_distance_m",    "friction", "tree",         "markers",
-    "objects",     "rate"};
+const char* const kTopKeys[] = {"fixed_frame", "rate_hz",      "max_points_per_object",
+                                "dt_s",        "gravity_mps2", "dt",
+                                "gravity",     "level",        "contact_distance_m",
+                                "friction",    "tree",         "markers",
+                                "objects",     "rate",         "robot"};
 const char* const kObjectKeys[] = {"name",
                                    "topic",
                                    "follow_frame",
@@ -41,6 +42,7 @@ const char* const kObjectKeys[] = {"name",
                                    "cluster_overlap_ratio",
                                    "mass"};
 const char* const kTreeKeys[] = {"leaf_size", "branching", "exact_radius_points", "depth"};
+const char* const kRobotKeys[] = {"links", "description_param", "point_spacing_m", "link"};
 const char* const kStrings[] = {"",          "a",        "ball",     "floor",   "x y",
                                 "/abs",      "~private", "a/b",      "a//b",    "1abc",
                                 "track",     "reset",    "ignore",   "rigid",   "linear",
@@ -173,10 +175,17 @@ void checkAccepted(const deformable_collision::NodeConfig& config) {
   check(config.scene.contact_distance_m > 0 && std::isfinite(config.scene.contact_distance_m),
         "contact_distance_m");
   check(!config.objects.empty(), "objects");
+  check(!config.robot ||
+            (config.robot->point_spacing_m > 0 && std::isfinite(config.robot->point_spacing_m)),
+        "robot.point_spacing_m");
   for (const auto& params : config.objects) {
     std::string error;
     check(ros::names::validate(params.topic, error), "an invalid topic name was accepted");
     check(params.follow_frame.empty() || params.follow_frame[0] != '/', "follow_frame");
+    check(params.robot_link.empty() ||
+              (params.topic.empty() && params.follow_frame == params.robot_link &&
+               params.object.kind == deformable_collision::ObjectKind::kKinematic),
+          "a robot link is a kinematic object on its frame, without a topic");
     const auto& shape = params.object.shape;
     check(shape.stiffness >= 0 && shape.stiffness <= 1 && shape.beta >= 0 && shape.beta <= 1 &&
               shape.mass_kg > 0 && std::isfinite(shape.mass_kg),
@@ -207,7 +216,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t siz
   XmlRpcValue params = validConfiguration();
   const int edits = input.ConsumeIntegralInRange(0, 6);
   for (int e = 0; e < edits; ++e) {
-    switch (input.ConsumeIntegralInRange(0, 5)) {
+    switch (input.ConsumeIntegralInRange(0, 6)) {
       case 0:
         edit(input, params, pick(input, kTopKeys));
         break;
@@ -230,6 +239,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t siz
       }
       case 4:
         edit(input, params["tree"], pick(input, kTreeKeys));
+        break;
+      case 5:
+        edit(input, params["robot"], pick(input, kRobotKeys));
         break;
       default:
         edit(input, params["markers"], input.ConsumeBool() ? "colliding_only" : "all");

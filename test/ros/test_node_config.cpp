@@ -438,5 +438,117 @@ TEST(NodeConfig, OnCloudNamesRoundTrip) {
   EXPECT_FALSE(parseOnCloud("Track"));
 }
 
+/// validParams() with a robot block of `links`.
+XmlRpcValue robotParams(const std::vector<std::string>& links) {
+  XmlRpcValue params = validParams();
+  XmlRpcValue& list = params["robot"]["links"];
+  list.setSize(static_cast<int>(links.size()));
+  for (std::size_t i = 0; i < links.size(); ++i) list[static_cast<int>(i)] = links[i];
+  return params;
+}
+
+TEST(NodeConfig, RobotLinksAreKinematicObjectsAfterTheOthersNamedAfterTheLinks) {
+  const NodeConfig config =
+      parseWithoutWarnings(robotParams({"left_finger", "gripper/right-finger", "2nd"}));
+  ASSERT_TRUE(config.robot);
+  EXPECT_EQ(config.robot->description_param, "robot_description");
+  EXPECT_DOUBLE_EQ(config.robot->point_spacing_m, 0.01) << "contact_distance_m when left out";
+  ASSERT_EQ(config.objects.size(), 7u);
+  const std::vector<std::string> links = {"left_finger", "gripper/right-finger", "2nd"};
+  const std::vector<std::string> names = {"left_finger", "gripper_right_finger", "link_2nd"};
+  for (std::size_t i = 0; i < 3; ++i) {
+    const ObjectParams& link = config.objects[4 + i];
+    EXPECT_EQ(link.object.name, names[i]);
+    EXPECT_EQ(link.robot_link, links[i]);
+    EXPECT_EQ(link.follow_frame, links[i]);
+    EXPECT_EQ(link.topic, "");
+    EXPECT_EQ(link.object.kind, ObjectKind::kKinematic);
+    EXPECT_EQ(link.object.shape.mode, DeformationMode::kRigid);
+  }
+  for (std::size_t i = 0; i < 4; ++i) EXPECT_EQ(config.objects[i].robot_link, "") << i;
+  EXPECT_FALSE(parseWithoutWarnings(validParams()).robot) << "no robot block, no robot";
+}
+
+TEST(NodeConfig, RobotBlockReadsItsParameterAndSpacing) {
+  XmlRpcValue params = robotParams({"finger"});
+  params["robot"]["description_param"] = "/arm/robot_description";
+  params["robot"]["point_spacing_m"] = 0.004;
+  const NodeConfig config = parseWithoutWarnings(params);
+  EXPECT_EQ(config.robot->description_param, "/arm/robot_description");
+  EXPECT_DOUBLE_EQ(config.robot->point_spacing_m, 0.004);
+}
+
+struct BadRobotCase {
+  std::string name;
+  std::function<void(XmlRpcValue&)> spoil;
+  std::string expected;  ///< The message must contain it (the key's name).
+};
+
+class BadRobotTest : public ::testing::TestWithParam<BadRobotCase> {};
+
+TEST_P(BadRobotTest, ThrowsNamingTheKey) {
+  XmlRpcValue params = robotParams({"left_finger", "right_finger"});
+  GetParam().spoil(params);
+  try {
+    std::vector<std::string> warnings;
+    parseNodeConfig(params, warnings);
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(GetParam().expected), std::string::npos) << e.what();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    NodeConfig, BadRobotTest,
+    ::testing::Values(
+        BadRobotCase{"NotADictionary", [](XmlRpcValue& p) { p["robot"] = "left_finger"; },
+                     "parameter robot must be a dictionary"},
+        BadRobotCase{"UnknownKey", [](XmlRpcValue& p) { p["robot"]["link"] = "a"; },
+                     "robot.link is not a known parameter"},
+        BadRobotCase{"NoLinks",
+                     [](XmlRpcValue& p) {
+                       p["robot"]["point_spacing_m"] = 0.004;
+                       p["robot"] = without(p["robot"], "links");
+                     },
+                     "robot.links is missing"},
+        BadRobotCase{"LinksNotAList", [](XmlRpcValue& p) { p["robot"]["links"] = "finger"; },
+                     "robot.links must be a non-empty list"},
+        BadRobotCase{"EmptyLinks",
+                     [](XmlRpcValue& p) {
+                       p["robot"]["links"] = XmlRpcValue();
+                       p["robot"]["links"].setSize(0);  // setSize only grows a list
+                     },
+                     "robot.links must be a non-empty list"},
+        BadRobotCase{"LinkNotAString", [](XmlRpcValue& p) { p["robot"]["links"][1] = 3; },
+                     "robot.links[1] must be a link name"},
+        BadRobotCase{"EmptyLink", [](XmlRpcValue& p) { p["robot"]["links"][0] = ""; },
+                     "robot.links[0] is empty"},
+        BadRobotCase{"LinkWithSlash", [](XmlRpcValue& p) { p["robot"]["links"][1] = "/finger"; },
+                     "robot.links[1] = '/finger' starts with '/'"},
+        BadRobotCase{"LinkTwice", [](XmlRpcValue& p) { p["robot"]["links"][2] = "left_finger"; },
+                     "robot.links[2] = 'left_finger' is listed twice"},
+        BadRobotCase{"NameOfAnObject", [](XmlRpcValue& p) { p["robot"]["links"][1] = "jaw"; },
+                     "robot.links[1] = 'jaw' would be the object 'jaw'"},
+        BadRobotCase{"MappedNamesCollide",
+                     [](XmlRpcValue& p) { p["robot"]["links"][1] = "left-finger"; },
+                     "robot.links[1] = 'left-finger' would be the object 'left_finger'"},
+        BadRobotCase{"ZeroSpacing", [](XmlRpcValue& p) { p["robot"]["point_spacing_m"] = 0.0; },
+                     "robot.point_spacing_m = 0"},
+        BadRobotCase{"EmptyDescription",
+                     [](XmlRpcValue& p) { p["robot"]["description_param"] = ""; },
+                     "robot.description_param is empty"},
+        BadRobotCase{"BadDescriptionName",
+                     [](XmlRpcValue& p) { p["robot"]["description_param"] = "robot description"; },
+                     "robot.description_param = 'robot description' is not a parameter name"}),
+    [](const ::testing::TestParamInfo<BadRobotCase>& info) { return info.param.name; });
+
+TEST(NodeConfig, RobotLinkObjectNamesAreValidObjectNames) {
+  EXPECT_EQ(robotLinkObjectName("finger"), "finger");
+  EXPECT_EQ(robotLinkObjectName("panda_leftfinger"), "panda_leftfinger");
+  EXPECT_EQ(robotLinkObjectName("arm/link-7.tip"), "arm_link_7_tip");
+  EXPECT_EQ(robotLinkObjectName("_base"), "link__base");
+  EXPECT_EQ(robotLinkObjectName("7"), "link_7");
+}
+
 }  // namespace
 }  // namespace deformable_collision
