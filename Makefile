@@ -53,12 +53,14 @@ bench:
 
 # docs/demo.png: the demo in rviz, rendered headless under Xvfb; SCENE=camera_gripper (or
 # another scene of demo.launch) writes docs/<scene>.png. camera_gripper is grabbed 5 s after
-# rviz's window appears (about 9 s into the scene), while the jaws still press the sponge.
+# rviz's window appears (about 9 s into the scene), while the jaws still press the sponge;
+# robot_gripper's fingers keep holding the fruit for the picture.
 screenshot: RVIZ := 1
 screenshot: build
 	@RENDER_SETTLE_S=$${RENDER_SETTLE_S:-$(if $(filter camera_gripper,$(SCENE)),5,7)} \
 	  bash scripts/render_demo_png "$(WORKSPACE)" \
-	  docs/$(if $(filter gripper,$(SCENE)),demo,$(SCENE)).png scene:=$(SCENE)
+	  docs/$(if $(filter gripper,$(SCENE)),demo,$(SCENE)).png scene:=$(SCENE) \
+	  $(if $(filter robot_gripper,$(SCENE)),gripper_open_at_s:=1000)
 
 clean:
 	rm -rf "$(WORKSPACE)"

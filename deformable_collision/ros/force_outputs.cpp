@@ -36,6 +36,18 @@ visualization_msgs::Marker marker(const std_msgs::Header& header, const char* ns
   return m;
 }
 
+/// The force a pair's arrow shows: on its static or kinematic object if it has one (what a
+/// sensor there reads, and an arrow that leaves the soft object instead of hiding in it),
+/// else on its object a.
+Eigen::Vector3d shownForce(const Scene& scene, const PairSummary& pair) {
+  const auto fixed = [&](std::uint32_t object) {
+    const ObjectKind kind = scene.objectConfig(object).kind;
+    return kind == ObjectKind::kStatic || kind == ObjectKind::kKinematic;
+  };
+  return fixed(pair.object_b) && !fixed(pair.object_a) ? Eigen::Vector3d(-pair.force_n)
+                                                       : pair.force_n;
+}
+
 }  // namespace
 
 void fillContactSummaryArray(const Scene& scene, const std::vector<PairSummary>& summaries,
@@ -81,7 +93,8 @@ void buildContactForceMarkers(const Scene& scene, const std::vector<PairSummary>
     auto arrow =
         marker(header, "pair_forces", static_cast<int>(k), visualization_msgs::Marker::ARROW);
     arrow.points.push_back(toPoint(summaries[k].centroid_m));
-    arrow.points.push_back(toPoint(summaries[k].centroid_m + scale_m_per_n * summaries[k].force_n));
+    arrow.points.push_back(
+        toPoint(summaries[k].centroid_m + scale_m_per_n * shownForce(scene, summaries[k])));
     arrow.scale.x = 0.004;
     arrow.scale.y = 0.008;
     arrow.color.r = 1.0;

@@ -17,9 +17,10 @@ namespace deformable_collision {
 void fillContactSummaryArray(const Scene& scene, const std::vector<PairSummary>& summaries,
                              ContactSummaryArray& message);
 
-/// Builds ~contact_markers: the contacts' positions (a SPHERE_LIST), each contact's force as a
-/// segment from its position (a LINE_LIST) and each pair's total force as an arrow from its
-/// centroid, `scale_m_per_n` metres per newton; the first marker deletes the last array's.
+/// Builds ~contact_markers: the contacts' positions (a SPHERE_LIST), each contact's force on
+/// its object a as a segment from its position (a LINE_LIST) and each pair's total force as
+/// an arrow from its centroid (on its static or kinematic object, if it has one), with
+/// `scale_m_per_n` metres per newton; the first marker deletes the last array's.
 void buildContactForceMarkers(const Scene& scene, const std::vector<PairSummary>& summaries,
                               double scale_m_per_n, const std_msgs::Header& header,
                               visualization_msgs::MarkerArray& markers);

@@ -1,7 +1,9 @@
 // Watches a running deformable_collision node for a fixed time, asks it for contacts over
 // its service like any client would, prints a report and exits (which ends `make demo`).
 // Where the scene publishes ground_truth/<object> (scene camera_gripper), it also scores the
-// node's ~deformed/<object> against it.
+// node's ~deformed/<object> against it; for each of ~wrench_objects (the robot_gripper
+// scene's fingers) it prints the force the node's ~wrench/<object> read over time.
+#include <geometry_msgs/WrenchStamped.h>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
@@ -12,6 +14,7 @@
 #include <deque>
 #include <functional>
 #include <list>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -186,6 +189,48 @@ class GroundTruthScore {
 
 /// Subscribes, for every ground_truth/<object> topic the master knows, to it and to the
 /// node's ~deformed/<object>.
+/// The force ~wrench/<object> read, in bins of kWrenchBinS from the first message: the
+/// mean magnitude and the mean along the frame's x (a finger's closing axis).
+class WrenchRecord {
+ public:
+  static constexpr double kWrenchBinS = 0.5;
+
+  WrenchRecord(ros::NodeHandle& node_handle, const std::string& object) : object_(object) {
+    subscriber_ = node_handle.subscribe<geometry_msgs::WrenchStamped>(
+        "wrench/" + object, 100,
+        boost::function<void(const geometry_msgs::WrenchStamped::ConstPtr&)>(
+            [this](const geometry_msgs::WrenchStamped::ConstPtr& m) { add(*m); }));
+  }
+
+  void print() const {
+    std::printf("force on %s (N, in its frame; mean per %.1f s from its first wrench):\n",
+                object_.c_str(), kWrenchBinS);
+    for (const auto& [bin, force] : bins_) {
+      std::printf("  t %4.1f s: |F| %7.3f, along x %+8.3f (%zu cycles)\n", bin * kWrenchBinS,
+                  force.magnitude.mean(), force.along_x / force.magnitude.count,
+                  force.magnitude.count);
+    }
+  }
+
+ private:
+  struct Bin {
+    Summary magnitude;
+    double along_x = 0.0;
+  };
+  void add(const geometry_msgs::WrenchStamped& m) {
+    if (first_.isZero()) first_ = m.header.stamp;
+    Bin& bin = bins_[static_cast<int>((m.header.stamp - first_).toSec() / kWrenchBinS)];
+    const auto& f = m.wrench.force;
+    bin.magnitude.add(std::sqrt(f.x * f.x + f.y * f.y + f.z * f.z));
+    bin.along_x += f.x;
+  }
+
+  std::string object_;
+  ros::Subscriber subscriber_;
+  ros::Time first_;
+  std::map<int, Bin> bins_;
+};
+
 void scoreGroundTruths(ros::NodeHandle& node_handle, std::list<GroundTruthScore>& scores,
                        std::vector<ros::Subscriber>& subscribers) {
   ros::master::V_TopicInfo topics;
@@ -317,6 +362,11 @@ int main(int argc, char** argv) {
       "contacts", 1,
       boost::function<void(const deformable_collision::ContactArray::ConstPtr&)>(
           [](const deformable_collision::ContactArray::ConstPtr&) {}));
+  std::list<WrenchRecord> wrenches;  // a list: the subscribers hold `this`
+  for (const std::string& object :
+       private_handle.param("wrench_objects", std::vector<std::string>{})) {
+    wrenches.emplace_back(node_handle, object);
+  }
   std::list<GroundTruthScore> scores;  // a list: the subscribers hold references
   std::vector<ros::Subscriber> score_subscribers;
   if (!watch(record, node, duration_s, startup_timeout_s,
@@ -329,6 +379,7 @@ int main(int argc, char** argv) {
   const bool answered = ros::service::call(node + "/get_contacts", query) && query.response.success;
   printReport(record, duration_s);
   for (const GroundTruthScore& score : scores) score.print();
+  for (const WrenchRecord& wrench : wrenches) wrench.print();
   if (answered) {
     std::printf("%s/get_contacts: %s\n", node.c_str(), query.response.message.c_str());
   } else {
