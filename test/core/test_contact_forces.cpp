@@ -11,10 +11,13 @@
 #include <cmath>
 #include <memory>
 #include <numeric>
+#include <optional>
+#include <utility>
 #include <string>
 #include <tuple>
 #include <vector>
 
+#include "deformable_collision/core/response/contact_totals.h"
 #include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/scenes/shapes.h"
 #include "scene_test_support.h"
@@ -341,7 +344,43 @@ void expectBoundsHoldAgainstTheFinest(Scene& scene) {
       EXPECT_LE((coarse[k].force_n - under[k]).norm(), coarse[k].force_error_n + 1e-9)
           << "contact " << k;
     }
+    // A pair's total is the finest level's, up to its indentation's error.
+    std::vector<PairSummary> coarse_pairs, finest_pairs;
+    summarizePairs(coarse, coarse_pairs);
+    summarizePairs(finest, finest_pairs);
+    ASSERT_EQ(coarse_pairs.size(), finest_pairs.size());
+    for (std::size_t p = 0; p < coarse_pairs.size(); ++p) {
+      const Eigen::Vector3d& total = finest_pairs[p].force_n;
+      EXPECT_LE((coarse_pairs[p].force_n - total).norm(),
+                coarse_pairs[p].force_error_n + 1e-9 * (1.0 + total.norm()))
+          << "pair " << p;
+    }
   }
+}
+
+// A query apart from the cycle, in either order of a pair's objects and after a detection
+// ahead of the next cycle, shares the last cycle's force of the pair.
+TEST(QueriedForceTest, TheLastCycleForceInEitherOrder) {
+  auto scene = sceneOnFloor(-1);
+  const std::size_t ball =
+      scene->addObject(ballConfig(DeformationMode::kLinear), ballPoints({0.0, 0.0, 0.06}));
+  for (int cycle = 0; cycle < 200; ++cycle) scene->cycle();
+  const Eigen::Vector3d cycle_force = forceOn(scene->contacts(), ball);
+  ASSERT_GT(cycle_force.z(), 0.5 * 2.0 * 9.81);
+  std::vector<SceneContact> queried;
+  for (const auto& [a, b] : {std::pair<std::optional<std::size_t>, std::optional<std::size_t>>{
+                                 ball, std::nullopt},
+                             {std::nullopt, ball},
+                             {ball, 0},
+                             {0, ball}}) {
+    scene->contactsAt(scene->maxLevel(), a, b, queried);
+    EXPECT_TRUE(forceOn(queried, ball).isApprox(cycle_force, 1e-9));
+    scene->contactsAt(0, a, b, queried);
+    EXPECT_TRUE(forceOn(queried, ball).isApprox(cycle_force, 1e-9));
+  }
+  scene->detectAhead();
+  scene->contactsAt(scene->maxLevel(), ball, std::nullopt, queried);
+  EXPECT_TRUE(forceOn(queried, ball).isApprox(cycle_force, 1e-9)) << "after a detection ahead";
 }
 
 TEST(ForceBoundTest, RestingBall) {

@@ -11,57 +11,75 @@ namespace deformable_collision {
 void ContactForces::assign(std::vector<SceneContact>& contacts, const std::vector<ContactRun>& runs,
                            double dt_s) {
   goals_of_ = nullptr;
+  cycle_forces_.clear();
   for (const ContactRun& run : runs) {
-    const Object& a = *objects_[run.object_a];
-    const Object& b = *objects_[run.object_b];
-    if (a.dynamic() || b.dynamic()) {
-      weights_.clear();
-      for (std::size_t k = run.begin; k < run.end; ++k) {
-        weights_.push_back(contacts[k].contact.depth_m);
-      }
-      const Eigen::Vector3d force = run.impulse_ns / dt_s;
-      share(contacts, run, force, 0.0);
-      continue;
+    const Eigen::Vector3d force = run.impulse_ns / dt_s;
+    if (objects_[run.object_a]->dynamic() || objects_[run.object_b]->dynamic()) {
+      cycle_forces_.push_back({run.object_a, run.object_b, force});
     }
-    const double magnitude = stiffnessForce(contacts, run);
-    const double residual = std::max(a.registration_residual_m, b.registration_residual_m);
-    const double stiffness =
-        std::max(a.config.contact_stiffness_n_per_m, b.config.contact_stiffness_n_per_m);
-    double bound = 0.0;
-    for (std::size_t k = run.begin; k < run.end; ++k) {
-      bound = std::max(bound, contacts[k].contact.error_bound_m);
-    }
-    // Along the pair's mean normal, as a probe's force is read: the normals of single point
-    // pairs scatter across a flat face.
-    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
-    for (std::size_t k = run.begin; k < run.end; ++k) {
-      normal += weights_[k - run.begin] * contacts[k].contact.normal;
-    }
-    const double length = normal.norm();
-    const Eigen::Vector3d force =
-        length > 0.0 ? Eigen::Vector3d(magnitude / length * normal) : Eigen::Vector3d::Zero();
-    share(contacts, run, force, stiffness * (bound + residual));
+    assignRun(contacts, run, force);
   }
 }
 
-void ContactForces::assignQueried(std::vector<SceneContact>& contacts,
-                                  const std::vector<ContactRun>& cycle_runs, double dt_s) {
-  std::vector<ContactRun> runs;
+void ContactForces::assignQueried(std::vector<SceneContact>& contacts) {
+  goals_of_ = nullptr;
+  queried_runs_.clear();
   for (std::size_t begin = 0; begin < contacts.size();) {
     std::size_t end = begin + 1;
     while (end < contacts.size() && contacts[end].object_a == contacts[begin].object_a &&
            contacts[end].object_b == contacts[begin].object_b) {
       ++end;
     }
-    ContactRun run{contacts[begin].object_a, contacts[begin].object_b, begin, end};
-    const auto last = std::find_if(cycle_runs.begin(), cycle_runs.end(), [&](const ContactRun& r) {
-      return r.object_a == run.object_a && r.object_b == run.object_b;
-    });
-    if (last != cycle_runs.end()) run.impulse_ns = last->impulse_ns;
-    runs.push_back(run);
+    queried_runs_.push_back({contacts[begin].object_a, contacts[begin].object_b, begin, end});
     begin = end;
   }
-  assign(contacts, runs, dt_s);
+  for (const ContactRun& run : queried_runs_) {
+    assignRun(contacts, run, lastCycleForce(run.object_a, run.object_b));
+  }
+}
+
+Eigen::Vector3d ContactForces::lastCycleForce(std::uint32_t object_a,
+                                              std::uint32_t object_b) const {
+  for (const PairForce& pair : cycle_forces_) {
+    if (pair.object_a == object_a && pair.object_b == object_b) return pair.force_n;
+    if (pair.object_a == object_b && pair.object_b == object_a) return -pair.force_n;
+  }
+  return Eigen::Vector3d::Zero();
+}
+
+void ContactForces::assignRun(std::vector<SceneContact>& contacts, const ContactRun& run,
+                              const Eigen::Vector3d& dynamic_force_n) {
+  if (!objects_[run.object_a]->dynamic() && !objects_[run.object_b]->dynamic()) {
+    assignStiffnessRun(contacts, run);
+    return;
+  }
+  weights_.clear();
+  for (std::size_t k = run.begin; k < run.end; ++k) {
+    weights_.push_back(contacts[k].contact.depth_m);
+  }
+  share(contacts, run, dynamic_force_n, 0.0);
+}
+
+void ContactForces::assignStiffnessRun(std::vector<SceneContact>& contacts,
+                                       const ContactRun& run) {
+  const Object& a = *objects_[run.object_a];
+  const Object& b = *objects_[run.object_b];
+  const double magnitude = stiffnessForce(contacts, run);
+  const double residual = std::max(a.registration_residual_m, b.registration_residual_m);
+  const double stiffness =
+      std::max(a.config.contact_stiffness_n_per_m, b.config.contact_stiffness_n_per_m);
+  double bound = 0.0;
+  // Along the pair's mean normal, as a probe's force is read: the normals of single point
+  // pairs scatter across a flat face.
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (std::size_t k = run.begin; k < run.end; ++k) {
+    bound = std::max(bound, contacts[k].contact.error_bound_m);
+    normal += weights_[k - run.begin] * contacts[k].contact.normal;
+  }
+  const double length = normal.norm();
+  const Eigen::Vector3d force =
+      length > 0.0 ? Eigen::Vector3d(magnitude / length * normal) : Eigen::Vector3d::Zero();
+  share(contacts, run, force, stiffness * (bound + residual));
 }
 
 // One stiffness per pair: a probe pressed a given depth into the object reads the same force
@@ -109,7 +127,8 @@ double ContactForces::indentation(const Object& object, std::uint32_t node,
 }
 
 // A contact's share of its pair is known to the precision of the depths that weigh it: exact
-// at the leaves; above them, anywhere between none and all of the pair.
+// at the leaves; above them, anywhere between none and all of the pair. The shares add up to
+// the pair's force, whose own error is the indentation's alone.
 void ContactForces::share(std::vector<SceneContact>& contacts, const ContactRun& run,
                           const Eigen::Vector3d& pair_force_n, double stiffness_bound_n) {
   const double magnitude_n = pair_force_n.norm();
@@ -119,8 +138,9 @@ void ContactForces::share(std::vector<SceneContact>& contacts, const ContactRun&
     SceneContact& contact = contacts[k];
     const double w = total > 0.0 ? weights_[k - run.begin] / total : 0.0;
     contact.force_n = w * pair_force_n;
+    contact.indentation_error_n = w * stiffness_bound_n;
     const double split = contact.contact.error_bound_m > 0.0 ? std::max(w, 1.0 - w) : 0.0;
-    contact.force_error_n = split * magnitude_n + w * stiffness_bound_n;
+    contact.force_error_n = split * magnitude_n + contact.indentation_error_n;
   }
 }
 

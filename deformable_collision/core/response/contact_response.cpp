@@ -231,6 +231,7 @@ void ContactResponse::exchangeVelocity(const VelocityExchange& exchange) {
   if (b.dynamic()) b.velocity_change -= (1.0 - exchange.share_a) * change;
   // An object nearer to the support acts as fixed (share 0 or 1): the momentum is what the
   // moving one took, and the one acting as fixed carries it on to its own supports.
+  if (!config_.contact_forces) return;
   const Eigen::Vector3d impulse =
       exchange.share_a > 0.0 ? Eigen::Vector3d(a.body.config().mass_kg * exchange.share_a * change)
                              : Eigen::Vector3d(b.body.config().mass_kg * change);
@@ -301,7 +302,9 @@ void ContactResponse::stopApproachToFixedPartners() {
     const double approach = (moving.mean_velocity + moving.velocity_change).dot(side->normal);
     if (approach >= 0.0) continue;
     moving.velocity_change -= approach * side->normal;
-    addImpulse(r, moving, -approach * moving.body.config().mass_kg * side->normal);
+    if (config_.contact_forces) {
+      addImpulse(r, moving, -approach * moving.body.config().mass_kg * side->normal);
+    }
   }
 }
 

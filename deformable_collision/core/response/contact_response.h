@@ -194,7 +194,7 @@ class ContactResponse {
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
   std::vector<ReachingNode> lowest_descent_;
-  /// One object's dent momentum per run (countDentImpulses).
+  /// One object's dent momentum per run (sumDentImpulses).
   struct RunImpulse {
     std::uint32_t run;
     Eigen::Vector3d impulse_ns;

@@ -42,7 +42,7 @@ PairSummary summarizePair(const std::vector<SceneContact>& contacts, std::size_t
     normal_sum += c.contact.depth_m * c.contact.normal;
     summary.largest_depth_m = std::max(summary.largest_depth_m, c.contact.depth_m);
     summary.force_n += c.force_n;
-    summary.force_error_n += c.force_error_n;
+    summary.force_error_n += c.indentation_error_n;
   }
   summary.centroid_m /= static_cast<double>(summary.contacts);
   const double length = normal_sum.norm();
@@ -77,7 +77,7 @@ Wrench wrenchOn(const std::vector<SceneContact>& contacts, std::uint32_t object,
     wrench.force_n += force;
     wrench.torque_nm += (c.contact.position - frame.translation()).cross(force);
   }
-  const Eigen::Matrix3d to_frame = frame.rotation().transpose();
+  const Eigen::Matrix3d to_frame = frame.linear().transpose();
   wrench.force_n = to_frame * wrench.force_n;
   wrench.torque_nm = to_frame * wrench.torque_nm;
   return wrench;

@@ -20,7 +20,9 @@ struct PairSummary {
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   double largest_depth_m = 0.0;
   Eigen::Vector3d force_n = Eigen::Vector3d::Zero();  ///< Total on a.
-  double force_error_n = 0.0;                         ///< The sum of the contacts' bounds.
+  /// How far force_n can be from the finest level's total: the contacts' shares of the
+  /// indentation's error (0 for a pair with a dynamic object, whose total every level shares).
+  double force_error_n = 0.0;
   /// The ellipse the contact positions spread over in the plane across `normal`: pi times
   /// twice each standard deviation (a disc or an ellipse of contacts gives its own area, a
   /// square 5% more). 0 for a single contact; the finest level's is the truest.

@@ -394,7 +394,7 @@ void Scene::contactsAt(int level, std::optional<std::size_t> object_a,
   refreshStaleTrees();
   contacts.clear();
   detect(level, object_a, object_b, contacts, nullptr);
-  if (config_.contact_forces) forces_.assignQueried(contacts, contact_runs_, config_.dt_s);
+  if (config_.contact_forces) forces_.assignQueried(contacts);
   stats_ = kept;
   query_counters_ = kept_counters;
 }

@@ -66,7 +66,7 @@ struct SceneConfig {
   /// pair drops by at most this times the approach speed the contact stops.
   double friction = 0.5;
   /// Each cycle's contacts get their forces (ContactForces); false: force_n stays zero and
-  /// the response keeps no account of them.
+  /// the response keeps no account of the momentum it exchanges.
   bool contact_forces = true;
   SphereTreeConfig tree;
   RegistrationConfig registration;  ///< Of tracked objects' unordered clouds (registerCloud).
@@ -83,6 +83,9 @@ struct SceneContact {
   /// How far force_n can be from the sum of the finest level's forces of the two nodes'
   /// points (N, >= 0): 0 at the leaves of a dynamic pair.
   double force_error_n = 0.0;
+  /// The part of force_error_n that the indentation's error makes (0 in a dynamic pair):
+  /// summed over a pair, how far its total can be from the finest level's.
+  double indentation_error_n = 0.0;
 };
 
 /// Per-cycle timings (steady clock) and counts.
@@ -264,8 +267,9 @@ class Scene {
   void detectAhead();
 
   /// Contacts at `level` on the current state, for objects a and b (std::nullopt: any).
-  /// The running level and the contacts of the last cycle are left alone; each object pair's
-  /// force is the last cycle's, shared among these contacts (ContactForces). Like cycle(), it
+  /// The running level and the contacts of the last cycle are left alone; a pair with a
+  /// dynamic object has the last cycle's force, shared among these contacts (ContactForces).
+  /// Like cycle(), it
   /// never reports two static objects touching: the broad phase never pairs them, since
   /// neither can move the other.
   /// @throw std::out_of_range if level is not in [0, maxLevel()] or an object index is not.
