@@ -1,13 +1,17 @@
 // The robot_gripper demo end to end (robot_gripper_demo.test): the fingers, robot links of
-// config/robot/two_finger_gripper.urdf, close on the fruit over 2 s, hold it and open at 6 s
-// (scripts/gripper_joint_driver). Their ~wrench/<finger> read equal and opposite squeezing
-// forces while they hold it, and next to none once open.
+// config/robot/two_finger_gripper.urdf, close on the fruit, hold it and open again
+// (scripts/gripper_joint_driver). While they hold it, their ~wrench/<finger> read equal and
+// opposite squeezing forces; once open, next to none. The windows come from the joint states
+// the driver sends, on the clock of the wrenches' stamps.
 #include <geometry_msgs/WrenchStamped.h>
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
 
 #include <cmath>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "node_test_support.h"
@@ -16,16 +20,16 @@ namespace deformable_collision {
 namespace test {
 namespace {
 
-/// A finger's force along its frame's x, stamped from the first wrench of either finger.
+/// A finger's force along its frame's x, by stamp.
 struct ForceSamples {
-  std::vector<std::pair<double, double>> samples;  ///< (s since the first, N)
+  std::vector<std::pair<ros::Time, double>> samples;
 
-  /// The mean over [from_s, to_s); NaN if none.
-  double mean(double from_s, double to_s) const {
+  /// The mean over [from, to); NaN if none.
+  double mean(const ros::Time& from, const ros::Time& to) const {
     double sum = 0.0;
     int count = 0;
     for (const auto& [t, fx] : samples) {
-      if (t < from_s || t >= to_s) continue;
+      if (t < from || t >= to) continue;
       sum += fx;
       ++count;
     }
@@ -33,33 +37,62 @@ struct ForceSamples {
   }
 };
 
+/// When the driver's right finger joint reached the closed pad (0.06 m), left it, and came
+/// back to the open one (0.1 m).
+struct Course {
+  std::optional<ros::Time> closed, opening, opened;
+
+  void add(const sensor_msgs::JointState& state) {
+    if (state.position.size() < 2) return;
+    const double right = state.position[1];
+    if (!closed && right <= 0.0601) closed = state.header.stamp;
+    if (closed && !opening && right > 0.0601) opening = state.header.stamp;
+    if (opening && !opened && right >= 0.0999) opened = state.header.stamp;
+  }
+};
+
+template <typename Message, typename Callback>
+ros::Subscriber subscribe(ros::NodeHandle& handle, const std::string& topic, Callback callback) {
+  return handle.subscribe<Message>(
+      topic, 1000, boost::function<void(const typename Message::ConstPtr&)>(callback));
+}
+
 TEST(RobotGripperDemo, FingersReadTheSqueezeTheyHold) {
   ros::NodeHandle handle;
-  ros::Time first;
   ForceSamples left, right;
-  const auto record = [&first](ForceSamples& finger) {
-    return boost::function<void(const geometry_msgs::WrenchStamped::ConstPtr&)>(
-        [&finger, &first](const geometry_msgs::WrenchStamped::ConstPtr& m) {
-          if (first.isZero()) first = m->header.stamp;
-          finger.samples.emplace_back((m->header.stamp - first).toSec(), m->wrench.force.x);
-        });
+  Course course;
+  const auto record = [](ForceSamples& finger) {
+    return [&finger](const geometry_msgs::WrenchStamped::ConstPtr& m) {
+      finger.samples.emplace_back(m->header.stamp, m->wrench.force.x);
+    };
   };
   const std::string node = "/deformable_collision/wrench/";
-  ros::Subscriber left_subscriber =
-      handle.subscribe<geometry_msgs::WrenchStamped>(node + "left_finger", 1000, record(left));
-  ros::Subscriber right_subscriber =
-      handle.subscribe<geometry_msgs::WrenchStamped>(node + "right_finger", 1000, record(right));
-  // The whole course: closed at 2 s, open from 6 s to 8 s, then a second open.
-  ASSERT_TRUE(
-      waitFor([&] { return !right.samples.empty() && right.samples.back().first > 9.0; }, 60.0))
-      << "no wrench of the fingers for 9 s";
-  const double held_left = left.mean(3.0, 5.0);
-  const double held_right = right.mean(3.0, 5.0);
+  auto left_subscriber =
+      subscribe<geometry_msgs::WrenchStamped>(handle, node + "left_finger", record(left));
+  auto right_subscriber =
+      subscribe<geometry_msgs::WrenchStamped>(handle, node + "right_finger", record(right));
+  auto joints_subscriber = subscribe<sensor_msgs::JointState>(
+      handle, "/joint_states",
+      [&course](const sensor_msgs::JointState::ConstPtr& m) { course.add(*m); });
+  ASSERT_TRUE(waitFor(
+      [&] {
+        return course.opened && !right.samples.empty() &&
+               right.samples.back().first > *course.opened + ros::Duration(1.0);
+      },
+      60.0))
+      << "the fingers did not close and open again with wrenches read";
+  // Held: from a second after closing to half a second before opening (4 s at the defaults).
+  const ros::Time held_from = *course.closed + ros::Duration(1.0);
+  const ros::Time held_to = *course.opening - ros::Duration(0.5);
+  const double held_left = left.mean(held_from, held_to);
+  const double held_right = right.mean(held_from, held_to);
   // Each finger is pushed outwards, the left one towards -x, by about 2 N (gripper scene).
   EXPECT_LT(held_left, -0.5);
   EXPECT_GT(held_right, 0.5);
   EXPECT_LT(std::abs(held_left + held_right), 0.05 * held_right);
-  EXPECT_LT(std::abs(right.mean(8.5, 9.0)), 0.2 * held_right) << "the open fingers still press";
+  const double open_right =
+      right.mean(*course.opened + ros::Duration(0.5), *course.opened + ros::Duration(1.0));
+  EXPECT_LT(std::abs(open_right), 0.2 * held_right) << "the open fingers still press";
 }
 
 }  // namespace
