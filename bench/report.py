@@ -1,14 +1,14 @@
 #!/usr/bin/python3
 """Writes the benchmark report from the files of scripts/run_benchmarks.
 
-Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv, s2_auto.csv,
-s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv and registration.txt there; writes
-s1.md, s2.md, s3.md, forces.md, memory.md, registration.md, summary.md (headline figures and the targets, met
-or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
-registration_error_vs_time.png. When RESULTS_DIR is the package's bench/results, it also
-writes docs/benchmarks.md (bench/benchmarks_intro.md, then those tables and plots, and
-latency.md of make latency if there) and the headline table between README.md's results
-markers, if it has them.
+Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv,
+s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv and registration.txt
+there; writes s1.md, s2.md, s3.md, forces.md, memory.md, registration.md, summary.md
+(headline figures and the targets, met or not) and the plots s1_time_vs_points.png,
+s2_error_vs_time.png, registration_error_vs_time.png. When RESULTS_DIR is the package's
+bench/results, it also writes docs/benchmarks.md (bench/benchmarks_intro.md, then those
+tables and plots, and latency.md of make latency if there) and the headline table between
+README.md's results markers, if it has them.
 Run by Debian's python3 (python3-matplotlib).
 """
 import csv

@@ -187,8 +187,6 @@ class GroundTruthScore {
   std::size_t unmatched_ = 0;
 };
 
-/// Subscribes, for every ground_truth/<object> topic the master knows, to it and to the
-/// node's ~deformed/<object>.
 /// The force ~wrench/<object> read, in bins of kWrenchBinS from the first message: the
 /// mean magnitude and the mean along the frame's x (a finger's closing axis).
 class WrenchRecord {
@@ -231,6 +229,8 @@ class WrenchRecord {
   std::map<int, Bin> bins_;
 };
 
+/// Subscribes, for every ground_truth/<object> topic the master knows, to it and to the
+/// node's ~deformed/<object>.
 void scoreGroundTruths(ros::NodeHandle& node_handle, std::list<GroundTruthScore>& scores,
                        std::vector<ros::Subscriber>& subscribers) {
   ros::master::V_TopicInfo topics;

@@ -103,7 +103,7 @@ TEST(WrenchOnTest, SumsForcesAndMomentsInTheFrame) {
   const Wrench centred = wrenchOn(contacts, 1, Eigen::Isometry3d::Identity());
   EXPECT_TRUE(centred.force_n.isApprox(Eigen::Vector3d(0.0, 0.0, 4.0)));
   EXPECT_NEAR(centred.torque_nm.norm(), 0.0, 1e-12);
-  // About x = 1: the contact at x = -1 pushes up 2 m away: -4 N m about y.
+  // About x = 1: the contact at x = -1 pushes up 2 m away: (-2, 0, 0) x (0, 0, 2), 4 N m about y.
   Eigen::Isometry3d frame = Eigen::Isometry3d(Eigen::Translation3d(1.0, 0.0, 0.0));
   Wrench offset = wrenchOn(contacts, 1, frame);
   EXPECT_TRUE(offset.torque_nm.isApprox(Eigen::Vector3d(0.0, 4.0, 0.0)));
