@@ -87,16 +87,11 @@ Ball circumBall(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
   return std::isfinite(best.radius_squared) ? best : farthestPairBall(p, 4);
 }
 
-}  // namespace
-
-Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
-                               std::vector<std::uint32_t>& order) {
-  Sphere result;
-  if (points.empty()) return result;
+/// The points less `origin`, in a fixed pseudo-random order, into scratch.shuffled.
+void shuffleCentred(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& origin,
+                    EnclosingSphereScratch& scratch) {
   const std::size_t n = points.size();
-  // Centring on one of the points keeps the support computations exact to the set's own
-  // size, not to its distance from the origin.
-  const Eigen::Vector3d origin = points[0];
+  std::vector<std::uint32_t>& order = scratch.order;
   order.resize(n);
   for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
   std::uint64_t state = 0x9E3779B97F4A7C15ull;
@@ -104,7 +99,22 @@ Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
     state = state * 6364136223846793005ull + 1442695040888963407ull;
     std::swap(order[i - 1], order[(state >> 33) % i]);
   }
-  const auto at = [&](std::size_t i) -> Eigen::Vector3d { return points[order[i]] - origin; };
+  scratch.shuffled.resize(n);
+  for (std::size_t i = 0; i < n; ++i) scratch.shuffled[i] = points[order[i]] - origin;
+}
+
+}  // namespace
+
+Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
+                               EnclosingSphereScratch& scratch) {
+  Sphere result;
+  if (points.empty()) return result;
+  const std::size_t n = points.size();
+  // Centring on one of the points keeps the support computations exact to the set's own
+  // size, not to its distance from the origin.
+  const Eigen::Vector3d origin = points[0];
+  shuffleCentred(points, origin, scratch);
+  const auto at = [&](std::size_t i) -> const Eigen::Vector3d& { return scratch.shuffled[i]; };
 
   Ball ball = pointBall(at(0));
   for (std::size_t i = 1; i < n; ++i) {
@@ -135,8 +145,8 @@ Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
 }
 
 Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points) {
-  std::vector<std::uint32_t> order;
-  return smallestEnclosingSphere(points, order);
+  EnclosingSphereScratch scratch;
+  return smallestEnclosingSphere(points, scratch);
 }
 
 Sphere enclosingSphereOfSpheres(const Sphere* spheres, std::size_t count) {
