@@ -3,6 +3,7 @@
 // dynamic object's points have gone.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <tuple>
 
 #include "deformable_collision/core/response/detail/fixed_planes.h"
 #include "deformable_collision/core/response/detail/rest_columns.h"
@@ -104,8 +105,8 @@ void measureExtents(const SphereTree& tree, std::uint32_t n, std::uint32_t sourc
   const NodeReach own =
       reachOfNode(columns.slotPoints(), tree.node(n), column.center, column.normal);
   column.radius = own.across + 0.5 * gap_m;
-  planes.extent_along[n] = columns.reach(source, column, own.along, 1.0, gap_m);
-  planes.extent_against[n] = columns.reach(source, column, own.against, -1.0, gap_m);
+  std::tie(planes.extent_along[n], planes.extent_against[n]) =
+      columns.reachBothWays(source, column, own.along, own.against, gap_m);
 }
 
 }  // namespace

@@ -23,9 +23,10 @@ struct RestColumn {
 
 /// Walks along columns of a node's rest points from a start outwards, through gaps no wider
 /// than a given one. A walk reads only the points its column holds near where it goes: it
-/// descends the tree from the node, passing over subtrees whose rest spheres lie off the
-/// column or off the stretch of it being read. Each point's offset is computed and compared
-/// as in a walk over the whole column sorted, so the reach is the same, bit for bit.
+/// descends the tree from the node, passing over subtrees whose rest boxes (along the
+/// normal) or spheres (across it) miss the column or the stretch of it being read. Each
+/// point's offset is computed and compared as in a walk over the whole column sorted, so the
+/// reach is the same, bit for bit.
 class RestColumns {
  public:
   RestColumns(const ShapeMatchingBody& body, const SphereTree& tree);
@@ -43,6 +44,10 @@ class RestColumns {
   double reach(std::uint32_t within, const RestColumn& column, double start, double sign,
                double gap_m, double enough = std::numeric_limits<double>::infinity());
 
+  /// reach() along the normal from `along_start` and against it from `against_start`.
+  std::pair<double, double> reachBothWays(std::uint32_t within, const RestColumn& column,
+                                          double along_start, double against_start, double gap_m);
+
  private:
   /// What a descent reads of a node.
   struct Node {
@@ -53,22 +58,28 @@ class RestColumns {
     /// The box around its points: much thinner than the sphere across a flat node, so it
     /// bounds the points' offsets along a normal (the sphere bounds them across it).
     Eigen::Vector3d box_center, box_half;
+    double box_margin;  ///< For the rounding of the offsets of the box's points.
     std::uint32_t first_child, child_count, first_point, point_count;
   };
 
-  /// Sorted in offsets_: sign times the offsets of the column's points of `within` in
-  /// (low, high].
-  void gather(std::uint32_t within, const RestColumn& column, double sign, double low, double high);
-  /// Whether none of the node's points can lie in the column with sign times its offset in
-  /// (low, high].
-  bool missesStretch(const Node& node, const RestColumn& column, double sign, double low,
-                     double high) const;
-  void gatherPoints(const Node& node, const RestColumn& column, double sign, double low,
-                    double high);
+  /// The part of a column being read: the points with sign times their offset in
+  /// (low, high], and what every node's test needs of the column.
+  struct Stretch {
+    const RestColumn& column;
+    double sign, low, high;
+    Eigen::Vector3d abs_normal;
+    double margin;  ///< For the rounding of offsets from the column's centre.
+  };
+
+  Stretch stretchOf(const RestColumn& column, double sign, double low, double high) const;
+  /// Sorted in offsets_: sign times the offsets of the stretch's points of `within`.
+  void gather(std::uint32_t within, const Stretch& stretch);
+  /// Whether none of the node's points can lie in the stretch.
+  bool misses(const Node& node, const Stretch& stretch) const;
+  void gatherPoints(const Node& node, const Stretch& stretch);
   /// Bounds on sign times the offsets of the node's points: around the first, within the
   /// second.
-  std::pair<double, double> offsetBounds(const Node& node, const RestColumn& column,
-                                         double sign) const;
+  std::pair<double, double> offsetBounds(const Node& node, const Stretch& stretch) const;
   /// The boxes of the nodes, children (which come after their parents) first.
   void boundBoxes();
 
