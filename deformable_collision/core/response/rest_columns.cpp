@@ -102,8 +102,12 @@ std::pair<double, double> RestColumns::reachBothWays(std::uint32_t within, const
     return {reach(within, column, along_start, 1.0, gap_m),
             reach(within, column, against_start, -1.0, gap_m)};
   }
-  // A short column is read once for both walks, as the old walks read the whole column.
-  gather(within, stretchOf(column, 1.0, -kInfinity, kInfinity));
+  // A short column is read once for both walks. Points between the two starts are passed
+  // over by both (so is a node's own part of the column), so they are not read at all.
+  Stretch both = stretchOf(column, 1.0, -kInfinity, kInfinity);
+  both.skip_low = -against_start;
+  both.skip_high = along_start;
+  gather(within, both);
   double along = along_start;
   double against = against_start;
   walk(offsets_.begin(), offsets_.end(), 1.0, gap_m, kInfinity, along);
@@ -113,7 +117,10 @@ std::pair<double, double> RestColumns::reachBothWays(std::uint32_t within, const
 
 RestColumns::Stretch RestColumns::stretchOf(const RestColumn& column, double sign, double low,
                                             double high) const {
-  return {column, sign, low, high, column.normal.cwiseAbs(), 1e-9 * column.center.cwiseAbs().sum()};
+  Stretch stretch{column, sign, low, high};
+  stretch.abs_normal = column.normal.cwiseAbs();
+  stretch.margin = 1e-9 * column.center.cwiseAbs().sum();
+  return stretch;
 }
 
 void RestColumns::gather(std::uint32_t within, const Stretch& stretch) {
@@ -137,6 +144,7 @@ void RestColumns::gather(std::uint32_t within, const Stretch& stretch) {
 bool RestColumns::misses(const Node& node, const Stretch& stretch) const {
   const auto [middle, half] = offsetBounds(node, stretch);
   if (middle + half <= stretch.low || middle - half > stretch.high) return true;
+  if (middle - half >= stretch.skip_low && middle + half <= stretch.skip_high) return true;
   const RestColumn& column = stretch.column;
   const Eigen::Vector3d away = node.center - column.center;
   const double along = away.dot(column.normal);
@@ -152,6 +160,7 @@ void RestColumns::gatherPoints(const Node& node, const Stretch& stretch) {
     const double offset = d.dot(column.normal);
     const double signed_offset = stretch.sign * offset;
     if (!(signed_offset > stretch.low && signed_offset <= stretch.high)) continue;
+    if (signed_offset >= stretch.skip_low && signed_offset <= stretch.skip_high) continue;
     if ((d - offset * column.normal).norm() <= column.radius) offsets_.push_back(signed_offset);
   }
 }

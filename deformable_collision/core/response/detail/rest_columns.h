@@ -63,12 +63,15 @@ class RestColumns {
   };
 
   /// The part of a column being read: the points with sign times their offset in
-  /// (low, high], and what every node's test needs of the column.
+  /// (low, high] but not in [skip_low, skip_high], and what every node's test needs of the
+  /// column.
   struct Stretch {
     const RestColumn& column;
     double sign, low, high;
-    Eigen::Vector3d abs_normal;
-    double margin;  ///< For the rounding of offsets from the column's centre.
+    double skip_low = std::numeric_limits<double>::infinity();
+    double skip_high = -std::numeric_limits<double>::infinity();
+    Eigen::Vector3d abs_normal = Eigen::Vector3d::Zero();
+    double margin = 0.0;  ///< For the rounding of offsets from the column's centre.
   };
 
   Stretch stretchOf(const RestColumn& column, double sign, double low, double high) const;
