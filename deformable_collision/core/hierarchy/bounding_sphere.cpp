@@ -11,15 +11,21 @@ namespace {
 
 /// Sphere through its support points, with the squared radius for the inside tests.
 struct Ball {
+  Ball() = default;
+  Ball(const Eigen::Vector3d& c, double r2) : center(c), radius_squared(r2), limit(limitOf(r2)) {}
+
+  /// The inside tests' bound, once per ball rather than per test. The relative slack
+  /// absorbs rounding in the support computations; the exact radius is recomputed at the
+  /// end, so the slack never costs enclosure.
+  static double limitOf(double r2) {
+    return r2 * (1.0 + 1e-12) + std::numeric_limits<double>::min();
+  }
+
+  bool contains(const Eigen::Vector3d& p) const { return (p - center).squaredNorm() <= limit; }
+
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
   double radius_squared = -1.0;  // empty
-
-  bool contains(const Eigen::Vector3d& p) const {
-    // The relative slack absorbs rounding in the support computations; the exact radius
-    // is recomputed at the end, so the slack never costs enclosure.
-    return (p - center).squaredNorm() <=
-           radius_squared * (1.0 + 1e-12) + std::numeric_limits<double>::min();
-  }
+  double limit = limitOf(-1.0);
 };
 
 Ball pointBall(const Eigen::Vector3d& a) { return {a, 0.0}; }
@@ -74,8 +80,7 @@ Ball circumBall(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
     if (offset.allFinite()) return {a + offset, offset.squaredNorm()};
   }
   const Eigen::Vector3d p[4] = {a, b, c, d};
-  Ball best;
-  best.radius_squared = std::numeric_limits<double>::infinity();
+  Ball best(Eigen::Vector3d::Zero(), std::numeric_limits<double>::infinity());
   for (int skip = 0; skip < 4; ++skip) {
     Eigen::Vector3d q[3];
     for (int i = 0, n = 0; i < 4; ++i) {
