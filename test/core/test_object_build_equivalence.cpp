@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <cstring>
 #include <functional>
@@ -95,6 +96,16 @@ Digests ofShape(const std::vector<Eigen::Vector3d>& points, int clusters,
   return {trees.value(), planes.value()};
 }
 
+/// `points` turned about a slanted axis and carried `offset_m` away: planes whose normals
+/// are no axis, coordinates whose rounding is far coarser than near the origin.
+std::vector<Eigen::Vector3d> moved(std::vector<Eigen::Vector3d> points, double angle_rad,
+                                   const Eigen::Vector3d& offset_m) {
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(angle_rad, Eigen::Vector3d(1.0, 2.0, 0.5).normalized()).toRotationMatrix();
+  for (auto& p : points) p = turn * p + offset_m;
+  return points;
+}
+
 SphereTreeConfig wideTree() {
   SphereTreeConfig config;
   config.branching = 3;
@@ -139,6 +150,16 @@ const std::vector<Case>& cases() {
          return ofShape(sampleBox(8000, {0.2, 0.2, 0.04}, 7), 1, {}, 0.01);
        },
        {0x68df41f1cf3c55e2ull, 0x1b80cda60ef77b65ull}},
+      {"tilted_thick_floor",
+       [] {
+         return ofShape(moved(gridLayers(31, 6, 0.01), 0.7, {0.3, -0.2, 0.1}), 1, {}, 0.01);
+       },
+       {0x4d574a9ab27e3863ull, 0xc86b017478583c78ull}},
+      {"far_thick_floor",
+       [] {
+         return ofShape(moved(gridLayers(31, 6, 0.01), 0.3, {1e5, -3e4, 2e3}), 1, {}, 0.01);
+       },
+       {0xc02957c691e92515ull, 0x233b0782f787a59bull}},
       {"scanned_surface",
        [] {
          return ofShape(sampleNoisySurface(8000, {0.3, 0.2, 0.1}, 0.001, 11), 1, {}, 0.01);
@@ -157,7 +178,7 @@ TEST_P(ObjectBuildEquivalence, TreesAndPlanesAsBefore) {
   EXPECT_EQ(got.planes, c.expected.planes) << c.name << ": planes 0x" << std::hex << got.planes;
 }
 
-INSTANTIATE_TEST_SUITE_P(Cases, ObjectBuildEquivalence, ::testing::Range<std::size_t>(0, 10),
+INSTANTIATE_TEST_SUITE_P(Cases, ObjectBuildEquivalence, ::testing::Range<std::size_t>(0, 12),
                          [](const ::testing::TestParamInfo<std::size_t>& info) {
                            return std::string(cases()[info.param].name);
                          });
