@@ -55,8 +55,9 @@ void RestColumns::boundBoxes() {
 
 namespace {
 
-/// The old walk over sorted offsets, times `sign`, from `reach` outwards: true once it ends,
-/// at a gap wider than `gap_m` or past `enough`.
+/// The walk over a column's sorted offsets, times `sign`, from `reach` outwards: true once
+/// it ends, at a gap wider than `gap_m` (the surface of a layered or solid slab, not what
+/// lies beyond a gap) or past `enough`.
 template <typename Iterator>
 bool walk(Iterator first, Iterator last, double sign, double gap_m, double enough, double& reach) {
   for (; first != last; ++first) {
