@@ -1,10 +1,10 @@
 // The cost of making an object (Scene::addObject: clusters, rest moments, tree, exact radii,
 // slabs, fixed planes) and of the first cycle after it, against its points:
-//   bench_add_object SHAPE KIND POINTS results_dir [repeats=1]
+//   bench_add_object SHAPE KIND POINTS results_dir [repeats=1] [clusters=1]
 // SHAPE: thin_grid (two layers 1 cm apart, 1 cm spacing), thick_grid (16 such layers),
 // random_box (uniform in a 16 cm thick box, a point per cm^3), scanned_surface (a closed
-// ellipsoid surface, a point per cm^2, 1 mm of noise). KIND: static or dynamic (linear, one
-// cluster). The least of `repeats` runs -> add_object.csv.
+// ellipsoid surface, a point per cm^2, 1 mm of noise). KIND: static or dynamic (linear).
+// The least of `repeats` runs -> add_object.csv.
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
@@ -44,9 +44,10 @@ std::vector<Eigen::Vector3d> shapePoints(const std::string& shape, std::size_t p
   std::exit(2);
 }
 
-dc::ObjectConfig objectConfig(const std::string& kind) {
+dc::ObjectConfig objectConfig(const std::string& kind, int clusters) {
   dc::ObjectConfig config;
   config.name = "object";
+  config.shape.clusters = clusters;
   if (kind == "static") {
     config.kind = dc::ObjectKind::kStatic;
     config.shape.mode = dc::DeformationMode::kRigid;
@@ -84,13 +85,16 @@ Timing measure(const std::vector<Eigen::Vector3d>& points, const dc::ObjectConfi
 
 int main(int argc, char** argv) {
   if (argc < 5) {
-    std::fprintf(stderr, "usage: bench_add_object SHAPE KIND POINTS results_dir [repeats=1]\n");
+    std::fprintf(stderr,
+                 "usage: bench_add_object SHAPE KIND POINTS results_dir [repeats=1] "
+                 "[clusters=1]\n");
     return 2;
   }
   const std::string shape = argv[1], kind = argv[2];
   const std::vector<Eigen::Vector3d> points = shapePoints(shape, std::stoul(argv[3]));
   const int repeats = argc > 5 ? std::max(1, std::atoi(argv[5])) : 1;
-  const Timing t = measure(points, objectConfig(kind), repeats);
+  const int clusters = argc > 6 ? std::max(1, std::atoi(argv[6])) : 1;
+  const Timing t = measure(points, objectConfig(kind, clusters), repeats);
   const double us_per_point = 1000.0 * t.add_ms / double(points.size());
   db::CsvAppender csv(std::string(argv[4]) + "/add_object.csv",
                       "shape,kind,points,add_ms,us_per_point,first_cycle_ms");
