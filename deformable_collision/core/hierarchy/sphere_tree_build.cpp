@@ -148,8 +148,8 @@ void SphereTree::build(const SphereTreeConfig& config) {
     const auto depth = static_cast<std::size_t>(node.level - branch_level);
     if (depth >= child_counts.size() || node.point_count < 2) continue;
     const std::uint32_t children = std::min(child_counts[depth], node.point_count);
-    // Splits below reorder the children's points: only leaves keep this order, and a split
-    // takes linear time where a sort per level took n log n.
+    // Splits below reorder the children's points, so only leaves need them sorted: a split
+    // is linear in the node's points, a sort n log n.
     splitAlongLongestAxis(node, children, depth + 1 >= child_counts.size());
     addChildren(index, children);
   }
