@@ -145,7 +145,12 @@ Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
   // The radius is measured from the stored centre in the callers' coordinates, so that the
   // sphere encloses every point as they will test it.
   result.center = origin + ball.center;
-  for (const auto& p : points) result.radius = std::max(result.radius, (p - result.center).norm());
+  double radius_squared = 0.0;
+  for (const auto& p : points) {
+    radius_squared = std::max(radius_squared, (p - result.center).squaredNorm());
+  }
+  // One root: a rounded root is monotone, so it is the largest of the points' distances.
+  result.radius = std::sqrt(radius_squared);
   return result;
 }
 

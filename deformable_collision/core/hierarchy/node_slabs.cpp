@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -41,13 +42,16 @@ void NodeSlabs::compute(const SphereTree& tree, const std::vector<Eigen::Vector3
     }
     slab.low_m = slab.normal.dot(points[node.first_point]);
     slab.high_m = slab.low_m;
+    double magnitude_squared = 0.0;
     for (std::uint32_t s = node.first_point; s < end; ++s) {
       const Eigen::Vector3d& point = points[s];
       const double along = slab.normal.dot(point);
       slab.low_m = std::min(slab.low_m, along);
       slab.high_m = std::max(slab.high_m, along);
-      slab.magnitude_m = std::max(slab.magnitude_m, point.norm());
+      magnitude_squared = std::max(magnitude_squared, point.squaredNorm());
     }
+    // One root for the node: a rounded root is monotone, so it is the largest of the roots.
+    slab.magnitude_m = std::sqrt(magnitude_squared);
   }
   slabs_ = std::move(slabs);
 }

@@ -334,14 +334,19 @@ void SphereTree::computeRestData(std::uint32_t index) {
   node.rest_radius_m = rest.radius;
   if (node.cluster < 0) return;
   const Eigen::Vector3d& c = rest.center;
+  double quadratic_squared = 0.0;
+  double mixed_squared = 0.0;
   for (const auto& q : scratch_points_) {
     const Eigen::Vector3d squares(q.x() * q.x() - c.x() * c.x(), q.y() * q.y() - c.y() * c.y(),
                                   q.z() * q.z() - c.z() * c.z());
     const Eigen::Vector3d mixed(q.x() * q.y() - c.x() * c.y(), q.y() * q.z() - c.y() * c.z(),
                                 q.z() * q.x() - c.z() * c.x());
-    node.quadratic_extent_m2 = std::max(node.quadratic_extent_m2, squares.norm());
-    node.mixed_extent_m2 = std::max(node.mixed_extent_m2, mixed.norm());
+    quadratic_squared = std::max(quadratic_squared, squares.squaredNorm());
+    mixed_squared = std::max(mixed_squared, mixed.squaredNorm());
   }
+  // One root each: a rounded root is monotone, so it is the largest of the points' norms.
+  node.quadratic_extent_m2 = std::sqrt(quadratic_squared);
+  node.mixed_extent_m2 = std::sqrt(mixed_squared);
 }
 
 }  // namespace deformable_collision

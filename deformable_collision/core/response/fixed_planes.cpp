@@ -3,6 +3,7 @@
 // dynamic object's points have gone.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <tuple>
 
 #include "deformable_collision/core/response/detail/fixed_planes.h"
@@ -58,13 +59,16 @@ struct NodeReach {
 NodeReach reachOfNode(const std::vector<Eigen::Vector3d>& rest, const SphereNode& node,
                       const Eigen::Vector3d& center, const Eigen::Vector3d& normal) {
   NodeReach reach;
+  double across_squared = 0.0;
   for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
     const Eigen::Vector3d d = rest[s] - center;
     const double offset = d.dot(normal);
     reach.along = std::max(reach.along, offset);
     reach.against = std::max(reach.against, -offset);
-    reach.across = std::max(reach.across, (d - offset * normal).norm());
+    across_squared = std::max(across_squared, (d - offset * normal).squaredNorm());
   }
+  // One root for the node: a rounded root is monotone, so it is the largest of the roots.
+  reach.across = std::sqrt(across_squared);
   return reach;
 }
 
