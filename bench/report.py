@@ -542,7 +542,7 @@ def add_object_report(results, series):
              "moments, tree with exact rest spheres, slabs and fixed planes (static), then the "
              "first cycle. Points 1 cm apart (random points: one per cm³; the surface: one per "
              "cm², 1 mm of noise); contact distance 1 cm; dynamic objects linear, one cluster. "
-             "One core, one run per row.\n\n")
+             "One core; each row the least of 3 runs.\n\n")
     text += table(["shape", "kind", "points", "made in ms", "µs per point", "first cycle ms"],
                   [(ADD_OBJECT_SHAPES.get(shape, shape), kind, r["points"],
                     f"{float(r['add_ms']):.1f}", f"{float(r['us_per_point']):.3f}",
