@@ -15,11 +15,13 @@ namespace {
 
 /// Each node's own best-fit plane normal, and whether its points clearly span a plane: 16
 /// points or more, least spread under a tenth of the middle one. A handful of points always
-/// fits some plane (three do exactly), often a wrong one.
+/// fits some plane (three do exactly), often a wrong one. Only planar nodes and the root lend
+/// their normals, so smaller nodes (half of them: the leaves) fit none.
 void fitOwnPlanes(const std::vector<Eigen::Vector3d>& rest, const SphereTree& tree,
                   std::vector<Eigen::Vector3d>& own_normal, std::vector<std::uint8_t>& planar) {
   for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
     const SphereNode& node = tree.node(n);
+    if (node.point_count < 16 && n != 0) continue;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
       mean += rest[s];
@@ -81,13 +83,16 @@ NodeReach reachOfNode(const std::vector<Eigen::Vector3d>& rest, const SphereNode
 /// The half gap keeps the surface layers: a fitted normal tilted by a thousandth puts the
 /// same layer's points a few tenths of a millimetre past the node's side across a wide
 /// column.
+/// Each planar node's reach along its own normal goes to `own_reach`.
 void clearSlices(const SphereTree& tree, const std::vector<Eigen::Vector3d>& own_normal,
-                 double gap_m, RestColumns& columns, std::vector<std::uint8_t>& planar) {
+                 double gap_m, RestColumns& columns, std::vector<std::uint8_t>& planar,
+                 std::vector<NodeReach>& own_reach) {
   for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
     if (!planar[n]) continue;
     RestColumn column{columns.center(n), own_normal[n], 0.0};
     const NodeReach own =
         reachOfNode(columns.slotPoints(), tree.node(n), column.center, column.normal);
+    own_reach[n] = own;
     column.radius = own.across + 0.5 * gap_m;
     const double past = 0.5 * gap_m;
     const double along = own.along + past;
@@ -102,13 +107,11 @@ void clearSlices(const SphereTree& tree, const std::vector<Eigen::Vector3d>& own
 /// The node's surfaces in line with it within `source`, whose plane it takes. The sphere's
 /// centre need not lie midway between the layers of a slab (a few points of the top layer
 /// may fix the sphere), so each side is measured on its own. A column half a gap wider than
-/// the node's points still meets its neighbours in a lattice.
-void measureExtents(const SphereTree& tree, std::uint32_t n, std::uint32_t source, double gap_m,
+/// the node's points still meets its neighbours in a lattice. `own` is the node's reach along
+/// its normal.
+void measureExtents(std::uint32_t n, std::uint32_t source, const NodeReach& own, double gap_m,
                     RestColumns& columns, FixedPlanes& planes) {
-  RestColumn column{columns.center(n), planes.normals[n], 0.0};
-  const NodeReach own =
-      reachOfNode(columns.slotPoints(), tree.node(n), column.center, column.normal);
-  column.radius = own.across + 0.5 * gap_m;
+  const RestColumn column{columns.center(n), planes.normals[n], own.across + 0.5 * gap_m};
   std::tie(planes.extent_along[n], planes.extent_against[n]) =
       columns.reachBothWays(source, column, own.along, own.against, gap_m);
 }
@@ -122,7 +125,8 @@ void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree,
   std::vector<std::uint8_t> planar(count, 0);
   RestColumns columns(body, tree);
   fitOwnPlanes(columns.slotPoints(), tree, own_normal, planar);
-  clearSlices(tree, own_normal, gap_m, columns, planar);
+  std::vector<NodeReach> own_reach(count);
+  clearSlices(tree, own_normal, gap_m, columns, planar, own_reach);
   normals.resize(count);
   extent_along.resize(count);
   extent_against.resize(count);
@@ -130,7 +134,11 @@ void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree,
     std::uint32_t source = n;
     while (!planar[source] && source != 0) source = parent[source];
     normals[n] = own_normal[source];
-    measureExtents(tree, n, source, gap_m, columns, *this);
+    // A node still planar takes its own plane: its reach along it is known.
+    const NodeReach own =
+        planar[n] ? own_reach[n]
+                  : reachOfNode(columns.slotPoints(), tree.node(n), columns.center(n), normals[n]);
+    measureExtents(n, source, own, gap_m, columns, *this);
   }
 }
 
