@@ -2,13 +2,14 @@
 """Writes the benchmark report from the files of scripts/run_benchmarks.
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv,
-s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv and registration.txt
-there; writes s1.md, s2.md, s3.md, forces.md, memory.md, registration.md, summary.md
-(headline figures and the targets, met or not) and the plots s1_time_vs_points.png,
-s2_error_vs_time.png, registration_error_vs_time.png. When RESULTS_DIR is the package's
-bench/results, it also writes docs/benchmarks.md (bench/benchmarks_intro.md, then those
-tables and plots, and latency.md of make latency if there) and the headline table between
-README.md's results markers, if it has them.
+s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv, registration.txt and
+add_object.csv there; writes s1.md, s2.md, s3.md, forces.md, memory.md, registration.md,
+add_object.md, summary.md (headline figures and the targets, met or not) and the plots
+s1_time_vs_points.png, s2_error_vs_time.png, registration_error_vs_time.png,
+add_object_time_vs_points.png. When RESULTS_DIR is the package's bench/results, it also
+writes docs/benchmarks.md (bench/benchmarks_intro.md, then those tables and plots, and
+latency.md of make latency if there) and the headline table between README.md's results
+markers, if it has them.
 Run by Debian's python3 (python3-matplotlib).
 """
 import csv
@@ -526,6 +527,99 @@ def registration_plot(results, rows):
     fig.savefig(os.path.join(results, "registration_error_vs_time.png"), dpi=110)
     plt.close(fig)
 
+ADD_OBJECT_SHAPES = {
+    "thin_grid": "a grid of 2 layers",
+    "thick_grid": "a grid of 16 layers",
+    "random_box": "random points in a 16 cm thick box",
+    "scanned_surface": "a noisy closed surface",
+}
+ADD_OBJECT_MAX_S = 3.0  # the issue's target: every shape up to 1M points made within it
+ADD_OBJECT_PER_POINT_SPREAD = 2.0  # and its time per point within this factor at all sizes
+
+
+def read_add_object(results):
+    """The rows of bench_add_object, by (shape, kind) in the order they came; none if the
+    file is not there."""
+    path = os.path.join(results, "add_object.csv")
+    if not os.path.exists(path):
+        return {}
+    series = {}
+    for r in read(results, "add_object.csv"):
+        series.setdefault((r["shape"], r["kind"]), []).append(r)
+    for rows in series.values():
+        rows.sort(key=lambda r: int(r["points"]))
+    return series
+
+
+def add_object_targets(series):
+    """Per shape and kind: (slowest s, per-point spread, met) over its sizes."""
+    verdicts = {}
+    for key, rows in series.items():
+        per_point = [float(r["us_per_point"]) for r in rows]
+        slowest = max(float(r["add_ms"]) for r in rows) / 1000
+        spread = max(per_point) / min(per_point)
+        verdicts[key] = (slowest, spread,
+                         slowest <= ADD_OBJECT_MAX_S and spread <= ADD_OBJECT_PER_POINT_SPREAD)
+    return verdicts
+
+
+def add_object_report(results, series):
+    text = "# Making an object: Scene::addObject against its points\n\n"
+    text += ("One object made in a new scene (`bench/bench_add_object.cpp`): clusters, rest "
+             "moments, tree with exact rest spheres, slabs and fixed planes (static), then the "
+             "first cycle. Points 1 cm apart (random points: one per cm³; the surface: one per "
+             "cm², 1 mm of noise); contact distance 1 cm; dynamic objects linear, one cluster. "
+             "One core; each row the least of 3 runs.\n\n")
+    text += table(["shape", "kind", "points", "made in ms", "µs per point", "first cycle ms"],
+                  [(ADD_OBJECT_SHAPES.get(shape, shape), kind, r["points"],
+                    f"{float(r['add_ms']):.1f}", f"{float(r['us_per_point']):.3f}",
+                    f"{float(r['first_cycle_ms']):.2f}")
+                   for (shape, kind), rows in series.items() for r in rows])
+    write(results, "add_object.md", text)
+
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5), squeeze=False)
+    for ax, kind in zip(axes[0], ("static", "dynamic")):
+        for (shape, k), rows in series.items():
+            if k == kind:
+                ax.loglog([int(r["points"]) for r in rows], [float(r["add_ms"]) for r in rows],
+                          marker="o", label=ADD_OBJECT_SHAPES.get(shape, shape))
+        ax.axhline(ADD_OBJECT_MAX_S * 1000, color="grey", linestyle="--", linewidth=1,
+                   label=f"target {ADD_OBJECT_MAX_S:g} s")
+        ax.set_xlabel("points in the object")
+        ax.set_ylabel("Scene::addObject, ms")
+        ax.set_title(f"Making a {kind} object")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(results, "add_object_time_vs_points.png"), dpi=110)
+    plt.close(fig)
+
+
+def points_label(points):
+    """300304 -> 300k, 999698 -> 1M: the sizes asked for, not the grids' exact counts."""
+    return f"{round(points / 1e5) / 10:g}M" if points >= 950000 else f"{round(points / 1e4) * 10}k"
+
+
+def add_object_target_rows(series):
+    rows = []
+    for (shape, kind), (slowest, spread, met) in add_object_targets(series).items():
+        sizes = [int(r["points"]) for r in series[(shape, kind)]]
+        rows.append((f"Making {ADD_OBJECT_SHAPES.get(shape, shape)} ({kind}), "
+                     f"{points_label(sizes[0])} to {points_label(sizes[-1])} points: "
+                     f"<= {ADD_OBJECT_MAX_S:g} s, time per point within "
+                     f"{ADD_OBJECT_PER_POINT_SPREAD:g}x",
+                     f"slowest {slowest:.2f} s, time per point spread {spread:.2f}x",
+                     "**met**" if met else "**not met**"))
+    return rows
+
+
+def add_object_headline(series):
+    """The slowest of the largest objects of every shape and kind."""
+    ms, shape, kind, points = max((float(rows[-1]["add_ms"]), shape, kind, int(rows[-1]["points"]))
+                                  for (shape, kind), rows in series.items())
+    return (f"Making an object of {points_label(points)} points: the slowest shape",
+            f"{ms / 1000:.2f} s ({ADD_OBJECT_SHAPES.get(shape, shape)}, {kind})")
+
 
 def peer_target(ms, methods, distance, points, factor):
     """The target row: ours at least `factor` times faster than the best peer."""
@@ -554,7 +648,7 @@ def auto_target(auto):
             "**met**" if within >= 0.95 and most > 1 else "**not met**")
 
 
-def targets_table(results, sizes, ms, methods, s2_rows, s3, forces):
+def targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object):
     """The issue's targets, met or not."""
     largest, smallest = sizes[-1], sizes[0]
     near = {(p, m): v for (d, p, m), v in ms.items() if d == NEAR_MISS_M}
@@ -586,6 +680,7 @@ def targets_table(results, sizes, ms, methods, s2_rows, s3, forces):
         ("S3: whole cycle <= 1 ms", f"{s3_cycle:.3f} ms (with the PointCloud2 conversion)",
          verdict(s3_cycle <= 1)),
         *forces_targets(forces),
+        *add_object_target_rows(add_object),
     ])
 
 
@@ -599,7 +694,7 @@ def s1_headline(ms, methods, distance, points, against):
             f"{ms[(distance, points, other)] / ours:.1f}x faster")
 
 
-def headline_table(sizes, ms, methods, s2_rows, s3, registration):
+def headline_table(sizes, ms, methods, s2_rows, s3, registration, add_object):
     """The few figures README shows; the targets table holds the rest."""
     largest = sizes[-1]
     finest = s2_rows[-1]
@@ -623,6 +718,8 @@ def headline_table(sizes, ms, methods, s2_rows, s3, registration):
                      f"{ours['cloud_points']} cloud points: mean error seen / hidden side",
                      f"{ours['seen']} / {ours['hidden']} mm at {ours['ms']} ms per cloud" +
                      (f" (rest model left in place: {rest['seen']} / {rest['hidden']} mm)" if rest else "")))
+    if add_object:
+        rows.append(add_object_headline(add_object))
     return table(["figure", "this run"], rows)
 
 
@@ -661,7 +758,7 @@ def doc_section(results, name, note="", plot=None):
     return text
 
 
-def benchmarks_doc(results, registration, forces):
+def benchmarks_doc(results, registration, forces, add_object):
     """docs/benchmarks.md: the fixed introduction, then every table and plot of this run."""
     sections = [doc_section(results, "summary.md"),
                 doc_section(results, "s1.md", plot="s1_time_vs_points.png"),
@@ -672,6 +769,8 @@ def benchmarks_doc(results, registration, forces):
     if registration:
         sections.append(doc_section(results, "registration.md",
                                     plot="registration_error_vs_time.png"))
+    if add_object:
+        sections.append(doc_section(results, "add_object.md", plot="add_object_time_vs_points.png"))
     sections.append(doc_section(results, "memory.md"))
     if os.path.exists(os.path.join(results, "latency.md")):
         sections.append(doc_section(results, "latency.md", note=(
@@ -711,19 +810,25 @@ def main():
     registration = read_registration(results)
     if registration:
         registration_report(results, registration)
-    headline = headline_table(sizes, ms, methods, s2_rows, s3, registration)
-    summary(results, headline, targets_table(results, sizes, ms, methods, s2_rows, s3, forces))
+    add_object = read_add_object(results)
+    if add_object:
+        add_object_report(results, add_object)
+    headline = headline_table(sizes, ms, methods, s2_rows, s3, registration, add_object)
+    summary(results, headline,
+            targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object))
     for name in ["summary.md", "s1.md", "s2.md", "s3.md", "memory.md"] + \
-            (["forces.md"] if forces else []) + (["registration.md"] if registration else []):
+            (["forces.md"] if forces else []) + \
+            (["registration.md"] if registration else []) + \
+            (["add_object.md"] if add_object else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
     print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "
-          "registration_error_vs_time.png)")
+          "registration_error_vs_time.png, add_object_time_vs_points.png)")
     # The page and README link to bench/results/: a run on another directory leaves them alone.
     if os.path.realpath(results) != os.path.realpath(os.path.join(PACKAGE, "bench", "results")):
         print(f"report: {results} is not bench/results; docs/benchmarks.md and README.md left alone")
         return
-    benchmarks_doc(results, registration, forces)
+    benchmarks_doc(results, registration, forces, add_object)
     print("report: docs/benchmarks.md written")
     if not readme_block(headline):
         print("report: README.md has no results markers; left alone")

@@ -18,4 +18,13 @@ std::vector<Eigen::Vector3d> sampleBox(std::size_t count, const Eigen::Vector3d&
 std::vector<Eigen::Vector3d> sampleEllipsoid(std::size_t count, const Eigen::Vector3d& radii_m,
                                              std::uint64_t seed);
 
+/// A regular grid of `side` x `side` points `spacing_m` apart in x and y, in `layers` layers
+/// as far apart below z = 0 (a floor's top at z = 0), centred on the z axis.
+std::vector<Eigen::Vector3d> gridLayers(int side, int layers, double spacing_m);
+
+/// `count` points on the surface of an axis-aligned ellipsoid centred at the origin, each moved
+/// by up to `noise_m` along each axis: a closed surface as a scanner sees it.
+std::vector<Eigen::Vector3d> sampleNoisySurface(std::size_t count, const Eigen::Vector3d& radii_m,
+                                                double noise_m, std::uint64_t seed);
+
 }  // namespace deformable_collision

@@ -11,15 +11,21 @@ namespace {
 
 /// Sphere through its support points, with the squared radius for the inside tests.
 struct Ball {
+  Ball() = default;
+  Ball(const Eigen::Vector3d& c, double r2) : center(c), radius_squared(r2), limit(limitOf(r2)) {}
+
+  /// The inside tests' bound, once per ball rather than per test. The relative slack
+  /// absorbs rounding in the support computations; the exact radius is recomputed at the
+  /// end, so the slack never costs enclosure.
+  static double limitOf(double r2) {
+    return r2 * (1.0 + 1e-12) + std::numeric_limits<double>::min();
+  }
+
+  bool contains(const Eigen::Vector3d& p) const { return (p - center).squaredNorm() <= limit; }
+
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
   double radius_squared = -1.0;  // empty
-
-  bool contains(const Eigen::Vector3d& p) const {
-    // The relative slack absorbs rounding in the support computations; the exact radius
-    // is recomputed at the end, so the slack never costs enclosure.
-    return (p - center).squaredNorm() <=
-           radius_squared * (1.0 + 1e-12) + std::numeric_limits<double>::min();
-  }
+  double limit = limitOf(-1.0);
 };
 
 Ball pointBall(const Eigen::Vector3d& a) { return {a, 0.0}; }
@@ -74,8 +80,7 @@ Ball circumBall(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
     if (offset.allFinite()) return {a + offset, offset.squaredNorm()};
   }
   const Eigen::Vector3d p[4] = {a, b, c, d};
-  Ball best;
-  best.radius_squared = std::numeric_limits<double>::infinity();
+  Ball best(Eigen::Vector3d::Zero(), std::numeric_limits<double>::infinity());
   for (int skip = 0; skip < 4; ++skip) {
     Eigen::Vector3d q[3];
     for (int i = 0, n = 0; i < 4; ++i) {
@@ -87,16 +92,11 @@ Ball circumBall(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
   return std::isfinite(best.radius_squared) ? best : farthestPairBall(p, 4);
 }
 
-}  // namespace
-
-Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
-                               std::vector<std::uint32_t>& order) {
-  Sphere result;
-  if (points.empty()) return result;
+/// The points less `origin`, in a fixed pseudo-random order, into scratch.shuffled.
+void shuffleCentred(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& origin,
+                    EnclosingSphereScratch& scratch) {
   const std::size_t n = points.size();
-  // Centring on one of the points keeps the support computations exact to the set's own
-  // size, not to its distance from the origin.
-  const Eigen::Vector3d origin = points[0];
+  std::vector<std::uint32_t>& order = scratch.order;
   order.resize(n);
   for (std::uint32_t i = 0; i < n; ++i) order[i] = i;
   std::uint64_t state = 0x9E3779B97F4A7C15ull;
@@ -104,7 +104,22 @@ Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
     state = state * 6364136223846793005ull + 1442695040888963407ull;
     std::swap(order[i - 1], order[(state >> 33) % i]);
   }
-  const auto at = [&](std::size_t i) -> Eigen::Vector3d { return points[order[i]] - origin; };
+  scratch.shuffled.resize(n);
+  for (std::size_t i = 0; i < n; ++i) scratch.shuffled[i] = points[order[i]] - origin;
+}
+
+}  // namespace
+
+Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
+                               EnclosingSphereScratch& scratch) {
+  Sphere result;
+  if (points.empty()) return result;
+  const std::size_t n = points.size();
+  // Centring on one of the points keeps the support computations exact to the set's own
+  // size, not to its distance from the origin.
+  const Eigen::Vector3d origin = points[0];
+  shuffleCentred(points, origin, scratch);
+  const auto at = [&](std::size_t i) -> const Eigen::Vector3d& { return scratch.shuffled[i]; };
 
   Ball ball = pointBall(at(0));
   for (std::size_t i = 1; i < n; ++i) {
@@ -130,13 +145,18 @@ Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points,
   // The radius is measured from the stored centre in the callers' coordinates, so that the
   // sphere encloses every point as they will test it.
   result.center = origin + ball.center;
-  for (const auto& p : points) result.radius = std::max(result.radius, (p - result.center).norm());
+  double radius_squared = 0.0;
+  for (const auto& p : points) {
+    radius_squared = std::max(radius_squared, (p - result.center).squaredNorm());
+  }
+  // One root: a rounded root is monotone, so it is the largest of the points' distances.
+  result.radius = std::sqrt(radius_squared);
   return result;
 }
 
 Sphere smallestEnclosingSphere(const std::vector<Eigen::Vector3d>& points) {
-  std::vector<std::uint32_t> order;
-  return smallestEnclosingSphere(points, order);
+  EnclosingSphereScratch scratch;
+  return smallestEnclosingSphere(points, scratch);
 }
 
 Sphere enclosingSphereOfSpheres(const Sphere* spheres, std::size_t count) {

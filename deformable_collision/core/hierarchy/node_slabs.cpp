@@ -2,6 +2,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -15,6 +16,9 @@ void NodeSlabs::compute(const SphereTree& tree, const std::vector<Eigen::Vector3
                                   std::to_string(positions.size()));
     }
   }
+  // The points by slot: each node reads its range in order, not scattered over the object.
+  std::vector<Eigen::Vector3d> points(indices.size());
+  for (std::size_t s = 0; s < indices.size(); ++s) points[s] = positions[indices[s]];
   std::vector<Slab> slabs(tree.nodeCount());
   for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
     const SphereNode& node = tree.node(n);
@@ -22,11 +26,11 @@ void NodeSlabs::compute(const SphereTree& tree, const std::vector<Eigen::Vector3
     if (node.point_count == 0) continue;
     // Centred first: the covariance of points far from the origin keeps its precision.
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (std::uint32_t s = node.first_point; s < end; ++s) mean += positions[indices[s]];
+    for (std::uint32_t s = node.first_point; s < end; ++s) mean += points[s];
     mean /= node.point_count;
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
     for (std::uint32_t s = node.first_point; s < end; ++s) {
-      const Eigen::Vector3d d = positions[indices[s]] - mean;
+      const Eigen::Vector3d d = points[s] - mean;
       covariance += d * d.transpose();
     }
     Slab& slab = slabs[n];
@@ -36,15 +40,18 @@ void NodeSlabs::compute(const SphereTree& tree, const std::vector<Eigen::Vector3
     if (solver.info() == Eigen::Success && least.allFinite() && least.norm() > 0.5) {
       slab.normal = least.normalized();
     }
-    slab.low_m = slab.normal.dot(positions[indices[node.first_point]]);
+    slab.low_m = slab.normal.dot(points[node.first_point]);
     slab.high_m = slab.low_m;
+    double magnitude_squared = 0.0;
     for (std::uint32_t s = node.first_point; s < end; ++s) {
-      const Eigen::Vector3d& point = positions[indices[s]];
+      const Eigen::Vector3d& point = points[s];
       const double along = slab.normal.dot(point);
       slab.low_m = std::min(slab.low_m, along);
       slab.high_m = std::max(slab.high_m, along);
-      slab.magnitude_m = std::max(slab.magnitude_m, point.norm());
+      magnitude_squared = std::max(magnitude_squared, point.squaredNorm());
     }
+    // One root for the node: a rounded root is monotone, so it is the largest of the roots.
+    slab.magnitude_m = std::sqrt(magnitude_squared);
   }
   slabs_ = std::move(slabs);
 }

@@ -276,7 +276,7 @@ Sphere SphereTree::exactSphere(std::uint32_t index) {
     if (leaf) slot_positions_.col(s) = x;  // gathered for the leaf-pair tests
     scratch_points_.push_back(x);
   }
-  Sphere sphere = smallestEnclosingSphere(scratch_points_, scratch_order_);
+  Sphere sphere = smallestEnclosingSphere(scratch_points_, scratch_sphere_);
   sphere.radius = withRoundingMargin(sphere.radius, sphere.center);
   return sphere;
 }

@@ -208,8 +208,13 @@ class SphereTree {
   /// The object's root (if it has several clusters) and one branch per cluster; returns
   /// the first branch's index.
   std::uint32_t addRootAndBranches();
-  /// Orders the node's slots along the longest axis of its points' rest box.
-  void sortAlongLongestAxis(const SphereNode& node);
+  /// Orders the node's slots along the longest axis of its points' rest box: sorted if
+  /// `sort_children` (children that are leaves keep the order), else only as far as each of
+  /// `children` equal parts holds its own points.
+  void splitAlongLongestAxis(const SphereNode& node, std::uint32_t children, bool sort_children);
+  Eigen::Index longestAxis(const SphereNode& node) const;
+  /// Slot i of the node takes what was slot order[i] of it.
+  void applyOrder(const SphereNode& node, const std::vector<std::uint32_t>& order);
   /// Splits the node's slots into `children` equal parts (at most its point count), one
   /// child each.
   void addChildren(std::uint32_t index, std::uint32_t children);
@@ -230,6 +235,11 @@ class SphereTree {
   std::vector<SphereNode> nodes_;
   std::vector<std::uint32_t> point_indices_;
   std::vector<std::uint32_t> point_slots_;  ///< Slot of each point in its node's cluster.
+  /// While building only, per slot of point_indices_: the rest point and its offset in its
+  /// cluster, moved with the slots, so that the build reads them in order, not scattered
+  /// over the body (in a large object each such read missed the cache).
+  std::vector<Eigen::Vector3d> build_points_;
+  std::vector<Eigen::Vector3d> build_offsets_;
   int max_level_ = 0;
 
   SphereUpdate method_ = SphereUpdate::kDeformation;
@@ -255,7 +265,7 @@ class SphereTree {
   std::vector<std::uint32_t> leaf_stamps_;
   std::vector<std::uint32_t> buckets_;
   std::vector<Eigen::Vector3d> scratch_points_;
-  std::vector<std::uint32_t> scratch_order_;
+  EnclosingSphereScratch scratch_sphere_;
   std::vector<Sphere> scratch_spheres_;
   std::uint32_t exact_radius_points_ = 0;
   /// Whether measureWithLeaves gathers a leaf's points eight per instruction.

@@ -125,7 +125,8 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
   for (const auto& node : nodes_)
     largest_node = std::max<std::size_t>(largest_node, node.point_count);
   scratch_points_.reserve(largest_node);
-  scratch_order_.reserve(largest_node);
+  scratch_sphere_.order.reserve(largest_node);
+  scratch_sphere_.shuffled.reserve(largest_node);
 }
 
 void SphereTree::build(const SphereTreeConfig& config) {
@@ -146,10 +147,15 @@ void SphereTree::build(const SphereTreeConfig& config) {
     const auto& child_counts = cluster_child_counts[static_cast<std::size_t>(node.cluster)];
     const auto depth = static_cast<std::size_t>(node.level - branch_level);
     if (depth >= child_counts.size() || node.point_count < 2) continue;
-    sortAlongLongestAxis(node);
-    addChildren(index, std::min(child_counts[depth], node.point_count));
+    const std::uint32_t children = std::min(child_counts[depth], node.point_count);
+    // Splits below reorder the children's points, so only leaves need them sorted: a split
+    // is linear in the node's points, a sort n log n.
+    splitAlongLongestAxis(node, children, depth + 1 >= child_counts.size());
+    addChildren(index, children);
   }
   for (std::uint32_t i = 0; i < nodes_.size(); ++i) computeRestData(i);
+  std::vector<Eigen::Vector3d>().swap(build_points_);
+  std::vector<Eigen::Vector3d>().swap(build_offsets_);
 }
 
 void SphereTree::gatherClusterPoints() {
@@ -159,6 +165,8 @@ void SphereTree::gatherClusterPoints() {
     for (std::uint32_t slot = 0; slot < cluster.points.size(); ++slot) {
       point_indices_.push_back(cluster.points[slot]);
       point_slots_.push_back(slot);
+      build_points_.push_back(body.restPositions()[cluster.points[slot]]);
+      build_offsets_.push_back(cluster.rest_offsets[slot]);
     }
   }
 }
@@ -187,31 +195,58 @@ std::uint32_t SphereTree::addRootAndBranches() {
   return cluster_count > 1 ? 1 : 0;
 }
 
-void SphereTree::sortAlongLongestAxis(const SphereNode& node) {
-  const auto& rest = body_->restPositions();
+void SphereTree::splitAlongLongestAxis(const SphereNode& node, std::uint32_t children,
+                                       bool sort_children) {
   const auto begin = static_cast<std::ptrdiff_t>(node.first_point);
-  const auto end = begin + node.point_count;
-  Eigen::AlignedBox3d box;
-  for (auto s = begin; s < end; ++s) box.extend(rest[point_indices_[s]]);
-  Eigen::Index axis = 0;
-  box.sizes().maxCoeff(&axis);
-  // Slots move with their points: sort a permutation of the range, then apply it. Equal
-  // coordinates are ordered by point index, so that the split does not depend on the sort.
+  const Eigen::Index axis = longestAxis(node);
+  // Slots move with their points: order a permutation of the range, then apply it. Equal
+  // coordinates are ordered by point index: the order is total, so each child gets the same
+  // points whether the range is sorted or only split at the children's bounds.
   std::vector<std::uint32_t> order(node.point_count);
   for (std::uint32_t i = 0; i < node.point_count; ++i) order[i] = i;
-  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
-    const std::uint32_t pa = point_indices_[begin + a];
-    const std::uint32_t pb = point_indices_[begin + b];
-    return rest[pa][axis] < rest[pb][axis] || (rest[pa][axis] == rest[pb][axis] && pa < pb);
-  });
-  std::vector<std::uint32_t> indices(node.point_count);
-  std::vector<std::uint32_t> slots(node.point_count);
-  for (std::uint32_t i = 0; i < node.point_count; ++i) {
-    indices[i] = point_indices_[begin + order[i]];
-    slots[i] = point_slots_[begin + order[i]];
+  const auto before = [&](std::uint32_t a, std::uint32_t b) {
+    const double xa = build_points_[begin + a][axis];
+    const double xb = build_points_[begin + b][axis];
+    return xa < xb || (xa == xb && point_indices_[begin + a] < point_indices_[begin + b]);
+  };
+  if (sort_children) {
+    std::sort(order.begin(), order.end(), before);
+  } else {
+    for (std::uint32_t c = 1; c < children; ++c) {
+      std::nth_element(order.begin() + node.point_count * (c - 1) / children,
+                       order.begin() + node.point_count * c / children, order.end(), before);
+    }
   }
-  std::copy(indices.begin(), indices.end(), point_indices_.begin() + begin);
-  std::copy(slots.begin(), slots.end(), point_slots_.begin() + begin);
+  applyOrder(node, order);
+}
+
+Eigen::Index SphereTree::longestAxis(const SphereNode& node) const {
+  Eigen::AlignedBox3d box;
+  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
+    box.extend(build_points_[s]);
+  }
+  Eigen::Index axis = 0;
+  box.sizes().maxCoeff(&axis);
+  return axis;
+}
+
+namespace {
+
+/// Slot first + i of `values` takes what was slot first + order[i].
+template <typename T>
+void permute(std::vector<T>& values, std::size_t first, const std::vector<std::uint32_t>& order) {
+  std::vector<T> ordered(order.size());
+  for (std::size_t i = 0; i < order.size(); ++i) ordered[i] = values[first + order[i]];
+  std::copy(ordered.begin(), ordered.end(), values.begin() + first);
+}
+
+}  // namespace
+
+void SphereTree::applyOrder(const SphereNode& node, const std::vector<std::uint32_t>& order) {
+  permute(point_indices_, node.first_point, order);
+  permute(point_slots_, node.first_point, order);
+  permute(build_points_, node.first_point, order);
+  permute(build_offsets_, node.first_point, order);
 }
 
 void SphereTree::addChildren(std::uint32_t index, std::uint32_t children) {
@@ -291,28 +326,27 @@ void SphereTree::setSphere(std::uint32_t index, const Sphere& sphere) {
 
 void SphereTree::computeRestData(std::uint32_t index) {
   SphereNode& node = nodes_[index];
-  const ShapeMatchingBody& body = *body_;
-  scratch_points_.clear();
-  for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-    if (node.cluster < 0) {
-      scratch_points_.push_back(body.restPositions()[point_indices_[s]]);
-    } else {
-      scratch_points_.push_back(body.cluster(node.cluster).rest_offsets[point_slots_[s]]);
-    }
-  }
-  const Sphere rest = smallestEnclosingSphere(scratch_points_, scratch_order_);
+  const auto& points = node.cluster < 0 ? build_points_ : build_offsets_;
+  scratch_points_.assign(points.begin() + node.first_point,
+                         points.begin() + node.first_point + node.point_count);
+  const Sphere rest = smallestEnclosingSphere(scratch_points_, scratch_sphere_);
   node.rest_center = rest.center;
   node.rest_radius_m = rest.radius;
   if (node.cluster < 0) return;
   const Eigen::Vector3d& c = rest.center;
+  double quadratic_squared = 0.0;
+  double mixed_squared = 0.0;
   for (const auto& q : scratch_points_) {
     const Eigen::Vector3d squares(q.x() * q.x() - c.x() * c.x(), q.y() * q.y() - c.y() * c.y(),
                                   q.z() * q.z() - c.z() * c.z());
     const Eigen::Vector3d mixed(q.x() * q.y() - c.x() * c.y(), q.y() * q.z() - c.y() * c.z(),
                                 q.z() * q.x() - c.z() * c.x());
-    node.quadratic_extent_m2 = std::max(node.quadratic_extent_m2, squares.norm());
-    node.mixed_extent_m2 = std::max(node.mixed_extent_m2, mixed.norm());
+    quadratic_squared = std::max(quadratic_squared, squares.squaredNorm());
+    mixed_squared = std::max(mixed_squared, mixed.squaredNorm());
   }
+  // One root each: a rounded root is monotone, so it is the largest of the points' norms.
+  node.quadratic_extent_m2 = std::sqrt(quadratic_squared);
+  node.mixed_extent_m2 = std::sqrt(mixed_squared);
 }
 
 }  // namespace deformable_collision

@@ -3,8 +3,11 @@
 // dynamic object's points have gone.
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <cmath>
+#include <tuple>
 
 #include "deformable_collision/core/response/detail/fixed_planes.h"
+#include "deformable_collision/core/response/detail/rest_columns.h"
 
 namespace deformable_collision {
 namespace detail {
@@ -12,20 +15,21 @@ namespace {
 
 /// Each node's own best-fit plane normal, and whether its points clearly span a plane: 16
 /// points or more, least spread under a tenth of the middle one. A handful of points always
-/// fits some plane (three do exactly), often a wrong one.
-void fitOwnPlanes(const ShapeMatchingBody& body, const SphereTree& tree,
+/// fits some plane (three do exactly), often a wrong one. Only planar nodes and the root lend
+/// their normals, so smaller nodes (half of them: the leaves) fit none.
+void fitOwnPlanes(const std::vector<Eigen::Vector3d>& rest, const SphereTree& tree,
                   std::vector<Eigen::Vector3d>& own_normal, std::vector<std::uint8_t>& planar) {
-  const auto& rest = body.restPositions();
   for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
     const SphereNode& node = tree.node(n);
+    if (node.point_count < 16 && n != 0) continue;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-      mean += rest[tree.pointIndices()[s]];
+      mean += rest[s];
     }
     mean /= node.point_count;
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
     for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-      const Eigen::Vector3d d = rest[tree.pointIndices()[s]] - mean;
+      const Eigen::Vector3d d = rest[s] - mean;
       covariance += d * d.transpose();
     }
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
@@ -54,53 +58,20 @@ struct NodeReach {
   double across = 0.0;
 };
 
-NodeReach reachOfNode(const ShapeMatchingBody& body, const SphereTree& tree, const SphereNode& node,
+NodeReach reachOfNode(const std::vector<Eigen::Vector3d>& rest, const SphereNode& node,
                       const Eigen::Vector3d& center, const Eigen::Vector3d& normal) {
-  const auto& rest = body.restPositions();
   NodeReach reach;
+  double across_squared = 0.0;
   for (std::uint32_t s = node.first_point; s < node.first_point + node.point_count; ++s) {
-    const Eigen::Vector3d d = rest[tree.pointIndices()[s]] - center;
+    const Eigen::Vector3d d = rest[s] - center;
     const double offset = d.dot(normal);
     reach.along = std::max(reach.along, offset);
     reach.against = std::max(reach.against, -offset);
-    reach.across = std::max(reach.across, (d - offset * normal).norm());
+    across_squared = std::max(across_squared, (d - offset * normal).squaredNorm());
   }
+  // One root for the node: a rounded root is monotone, so it is the largest of the roots.
+  reach.across = std::sqrt(across_squared);
   return reach;
-}
-
-/// The offsets along `normal` of `within`'s points in line with `center`: those within
-/// `radius` of the line through it along the normal; sorted.
-void columnOffsets(const ShapeMatchingBody& body, const SphereTree& tree, const SphereNode& within,
-                   const Eigen::Vector3d& center, const Eigen::Vector3d& normal, double radius,
-                   std::vector<double>& offsets) {
-  offsets.clear();
-  const auto& rest = body.restPositions();
-  for (std::uint32_t s = within.first_point; s < within.first_point + within.point_count; ++s) {
-    const Eigen::Vector3d d = rest[tree.pointIndices()[s]] - center;
-    const double offset = d.dot(normal);
-    if ((d - offset * normal).norm() <= radius) offsets.push_back(offset);
-  }
-  std::sort(offsets.begin(), offsets.end());
-}
-
-/// How far the column's points reach from `start` in `sign`'s direction, through no gap
-/// wider than `gap_m`: the surface of a layered or solid slab, not what lies beyond a gap.
-template <typename Iterator>
-double reachAcrossGaps(Iterator first, Iterator last, double start, double sign, double gap_m) {
-  double reach = start;
-  for (; first != last; ++first) {
-    const double offset = sign * *first;
-    if (offset <= reach) continue;
-    if (offset - reach > gap_m) break;
-    reach = offset;
-  }
-  return reach;
-}
-
-Eigen::Vector3d restCenter(const ShapeMatchingBody& body, const SphereNode& node) {
-  return node.cluster < 0
-             ? node.rest_center
-             : Eigen::Vector3d(node.rest_center + body.cluster(node.cluster).rest_center_of_mass);
 }
 
 /// Clears `planar` for the nodes that are slices of a thicker part of the object: its
@@ -112,24 +83,37 @@ Eigen::Vector3d restCenter(const ShapeMatchingBody& body, const SphereNode& node
 /// The half gap keeps the surface layers: a fitted normal tilted by a thousandth puts the
 /// same layer's points a few tenths of a millimetre past the node's side across a wide
 /// column.
-void clearSlices(const ShapeMatchingBody& body, const SphereTree& tree,
-                 const std::vector<Eigen::Vector3d>& own_normal, double gap_m,
-                 std::vector<std::uint8_t>& planar) {
-  std::vector<double> offsets;
+/// Each planar node's reach along its own normal goes to `own_reach`.
+void clearSlices(const SphereTree& tree, const std::vector<Eigen::Vector3d>& own_normal,
+                 double gap_m, RestColumns& columns, std::vector<std::uint8_t>& planar,
+                 std::vector<NodeReach>& own_reach) {
   for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
     if (!planar[n]) continue;
-    const SphereNode& node = tree.node(n);
-    const Eigen::Vector3d center = restCenter(body, node);
-    const NodeReach own = reachOfNode(body, tree, node, center, own_normal[n]);
-    columnOffsets(body, tree, tree.node(0), center, own_normal[n], own.across + 0.5 * gap_m,
-                  offsets);
+    RestColumn column{columns.center(n), own_normal[n], 0.0};
+    const NodeReach own =
+        reachOfNode(columns.slotPoints(), tree.node(n), column.center, column.normal);
+    own_reach[n] = own;
+    column.radius = own.across + 0.5 * gap_m;
     const double past = 0.5 * gap_m;
-    const bool continues_along =
-        reachAcrossGaps(offsets.begin(), offsets.end(), own.along, 1.0, gap_m) > own.along + past;
-    const bool continues_against = reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against,
-                                                   -1.0, gap_m) > own.against + past;
-    if (continues_along && continues_against) planar[n] = 0;
+    const double along = own.along + past;
+    const double against = own.against + past;
+    if (columns.reach(0, column, own.along, 1.0, gap_m, along) > along &&
+        columns.reach(0, column, own.against, -1.0, gap_m, against) > against) {
+      planar[n] = 0;
+    }
   }
+}
+
+/// The node's surfaces in line with it within `source`, whose plane it takes. The sphere's
+/// centre need not lie midway between the layers of a slab (a few points of the top layer
+/// may fix the sphere), so each side is measured on its own. A column half a gap wider than
+/// the node's points still meets its neighbours in a lattice. `own` is the node's reach along
+/// its normal.
+void measureExtents(std::uint32_t n, std::uint32_t source, const NodeReach& own, double gap_m,
+                    RestColumns& columns, FixedPlanes& planes) {
+  const RestColumn column{columns.center(n), planes.normals[n], own.across + 0.5 * gap_m};
+  std::tie(planes.extent_along[n], planes.extent_against[n]) =
+      columns.reachBothWays(source, column, own.along, own.against, gap_m);
 }
 
 }  // namespace
@@ -139,26 +123,22 @@ void FixedPlanes::compute(const ShapeMatchingBody& body, const SphereTree& tree,
   const std::vector<std::uint32_t> parent = parentsOf(tree);
   std::vector<Eigen::Vector3d> own_normal(count);
   std::vector<std::uint8_t> planar(count, 0);
-  fitOwnPlanes(body, tree, own_normal, planar);
-  clearSlices(body, tree, own_normal, gap_m, planar);
+  RestColumns columns(body, tree);
+  fitOwnPlanes(columns.slotPoints(), tree, own_normal, planar);
+  std::vector<NodeReach> own_reach(count);
+  clearSlices(tree, own_normal, gap_m, columns, planar, own_reach);
   normals.resize(count);
   extent_along.resize(count);
   extent_against.resize(count);
-  std::vector<double> offsets;
   for (std::uint32_t n = 0; n < count; ++n) {
     std::uint32_t source = n;
     while (!planar[source] && source != 0) source = parent[source];
     normals[n] = own_normal[source];
-    const SphereNode& node = tree.node(n);
-    const Eigen::Vector3d center = restCenter(body, node);
-    // The sphere's centre need not lie midway between the layers of a slab (a few points
-    // of the top layer may fix the sphere), so each side is measured on its own. A column
-    // half a gap wider than the node's points still meets its neighbours in a lattice.
-    const NodeReach own = reachOfNode(body, tree, node, center, normals[n]);
-    columnOffsets(body, tree, tree.node(source), center, normals[n], own.across + 0.5 * gap_m,
-                  offsets);
-    extent_along[n] = reachAcrossGaps(offsets.begin(), offsets.end(), own.along, 1.0, gap_m);
-    extent_against[n] = reachAcrossGaps(offsets.rbegin(), offsets.rend(), own.against, -1.0, gap_m);
+    // A node still planar takes its own plane: its reach along it is known.
+    const NodeReach own =
+        planar[n] ? own_reach[n]
+                  : reachOfNode(columns.slotPoints(), tree.node(n), columns.center(n), normals[n]);
+    measureExtents(n, source, own, gap_m, columns, *this);
   }
 }
 

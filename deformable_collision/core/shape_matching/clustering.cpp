@@ -42,6 +42,31 @@ void bisect(const std::vector<Eigen::Vector3d>& points, Indices indices, int clu
   bisect(points, std::move(second), cluster_count - first_count, cells);
 }
 
+/// Per cell, the points in its box grown by `overlap_ratio` of its diagonal, ascending. Only
+/// the cells whose own boxes meet the grown box can hold such points: a point is tested
+/// against the clusters near it, not against all of them.
+std::vector<Indices> grownClusters(const std::vector<Eigen::Vector3d>& points,
+                                   const std::vector<Indices>& cells, double overlap_ratio) {
+  std::vector<Eigen::AlignedBox3d> boxes;
+  boxes.reserve(cells.size());
+  for (const auto& cell : cells) boxes.push_back(boundsOf(points, cell));
+  std::vector<Indices> clusters(cells.size());
+  for (std::size_t k = 0; k < cells.size(); ++k) {
+    Eigen::AlignedBox3d grown = boxes[k];
+    const double margin = overlap_ratio * grown.diagonal().norm();
+    grown.min().array() -= margin;
+    grown.max().array() += margin;
+    for (std::size_t j = 0; j < cells.size(); ++j) {
+      if (!grown.intersects(boxes[j])) continue;
+      for (const auto i : cells[j]) {
+        if (grown.contains(points[i])) clusters[k].push_back(i);
+      }
+    }
+    std::sort(clusters[k].begin(), clusters[k].end());
+  }
+  return clusters;
+}
+
 }  // namespace
 
 std::vector<std::vector<std::uint32_t>> partitionIntoClusters(
@@ -61,18 +86,7 @@ std::vector<std::vector<std::uint32_t>> partitionIntoClusters(
   cells.reserve(cluster_count);
   bisect(points, std::move(all), cluster_count, cells);
   if (cluster_count == 1 || overlap_ratio == 0.0) return cells;
-
-  std::vector<Indices> clusters(cells.size());
-  for (std::size_t k = 0; k < cells.size(); ++k) {
-    Eigen::AlignedBox3d grown = boundsOf(points, cells[k]);
-    const double margin = overlap_ratio * grown.diagonal().norm();
-    grown.min().array() -= margin;
-    grown.max().array() += margin;
-    for (std::uint32_t i = 0; i < points.size(); ++i) {
-      if (grown.contains(points[i])) clusters[k].push_back(i);
-    }
-  }
-  return clusters;
+  return grownClusters(points, cells, overlap_ratio);
 }
 
 }  // namespace deformable_collision
