@@ -5,41 +5,19 @@
 #include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <exception>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "deformable_collision/scenes/byte_digest.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 
 namespace dc = deformable_collision;
 
 namespace {
 
-// FNV-1a over the bytes of what a cycle produced: two runs hash alike exactly when every
-// contact and every point's position and velocity are the same bits, which is what a change
-// that claims to keep the behaviour (a refactoring, a faster kernel) must show.
-class TrajectoryHash {
- public:
-  template <typename T>
-  void add(const T& value) {
-    unsigned char bytes[sizeof(T)];
-    std::memcpy(bytes, &value, sizeof(T));
-    for (unsigned char byte : bytes) hash_ = (hash_ ^ byte) * 0x100000001b3ULL;
-  }
-  void addVectors(const std::vector<Eigen::Vector3d>& vectors) {
-    for (const auto& v : vectors) {
-      add(v.x());
-      add(v.y());
-      add(v.z());
-    }
-  }
-  std::uint64_t value() const { return hash_; }
-
- private:
-  std::uint64_t hash_ = 0xcbf29ce484222325ULL;
-};
+using TrajectoryHash = dc::ByteDigest;
 
 void addContacts(const std::vector<dc::SceneContact>& contacts, TrajectoryHash& hash) {
   for (const auto& c : contacts) {

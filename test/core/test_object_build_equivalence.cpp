@@ -8,7 +8,6 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
-#include <cstring>
 #include <functional>
 #include <string>
 #include <vector>
@@ -16,29 +15,14 @@
 #include "deformable_collision/core/hierarchy/sphere_tree.h"
 #include "deformable_collision/core/response/detail/fixed_planes.h"
 #include "deformable_collision/core/shape_matching/shape_matching.h"
+#include "deformable_collision/scenes/byte_digest.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/scenes/shapes.h"
 
 namespace deformable_collision {
 namespace {
 
-/// FNV-1a over the bytes of the values fed to it, in order.
-class Digest {
- public:
-  template <typename T>
-  void add(const T& value) {
-    unsigned char bytes[sizeof(T)];
-    std::memcpy(bytes, &value, sizeof(T));
-    for (const unsigned char b : bytes) hash_ = (hash_ ^ b) * 0x100000001B3ull;
-  }
-  void add(const Eigen::Vector3d& v) {
-    for (int i = 0; i < 3; ++i) add(v[i]);
-  }
-  std::uint64_t value() const { return hash_; }
-
- private:
-  std::uint64_t hash_ = 0xCBF29CE484222325ull;
-};
+using Digest = ByteDigest;
 
 void addTree(const SphereTree& tree, Digest& digest) {
   for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {

@@ -1,7 +1,11 @@
 #pragma once
-// What the rostests' client nodes share: point grids, clouds, and waiting on events.
+// What the rostests' client nodes share: point grids, clouds, waiting on events, and loading
+// the nodelet into a test's manager.
 
+#include <gtest/gtest.h>
+#include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
+#include <xmlrpcpp/XmlRpcValue.h>
 
 #include <functional>
 #include <string>
@@ -47,6 +51,18 @@ inline bool waitFor(const std::function<bool()>& done, double timeout_s = kTimeo
     ros::WallDuration(0.002).sleep();
   }
   return done();
+}
+
+/// Loads the nodelet into `manager` under `name` with `params`; whether it started.
+inline bool loadNodelet(const std::string& manager, const std::string& name,
+                        const XmlRpc::XmlRpcValue& params) {
+  ros::param::set(name, params);
+  nodelet::NodeletLoad load;
+  load.request.name = name;
+  load.request.type = "deformable_collision/DeformableCollisionNodelet";
+  EXPECT_TRUE(ros::service::waitForService(manager + "/load_nodelet", ros::Duration(kTimeoutS)));
+  EXPECT_TRUE(ros::service::call(manager + "/load_nodelet", load));
+  return load.response.success;
 }
 
 }  // namespace test

@@ -121,17 +121,19 @@ struct BadParamCase {
 
 class BadParamTest : public ::testing::TestWithParam<BadParamCase> {};
 
-TEST_P(BadParamTest, ThrowsNamingTheParameter) {
-  XmlRpcValue params = validParams();
-  GetParam().spoil(params);
+/// Spoils `params` as the case says and expects them refused with the case's words.
+void expectRefused(XmlRpcValue params, const BadParamCase& c) {
+  c.spoil(params);
   try {
     std::vector<std::string> warnings;
     parseNodeConfig(params, warnings);
     FAIL() << "accepted";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(GetParam().expected), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
   }
 }
+
+TEST_P(BadParamTest, ThrowsNamingTheParameter) { expectRefused(validParams(), GetParam()); }
 
 INSTANTIATE_TEST_SUITE_P(
     NodeConfig, BadParamTest,
@@ -478,24 +480,12 @@ TEST(NodeConfig, RobotBlockReadsItsParameterAndSpacing) {
   EXPECT_DOUBLE_EQ(config.robot->point_spacing_m, 0.004);
 }
 
-struct BadRobotCase {
-  std::string name;
-  std::function<void(XmlRpcValue&)> spoil;
-  std::string expected;  ///< The message must contain it (the key's name).
-};
+using BadRobotCase = BadParamCase;
 
 class BadRobotTest : public ::testing::TestWithParam<BadRobotCase> {};
 
 TEST_P(BadRobotTest, ThrowsNamingTheKey) {
-  XmlRpcValue params = robotParams({"left_finger", "right_finger"});
-  GetParam().spoil(params);
-  try {
-    std::vector<std::string> warnings;
-    parseNodeConfig(params, warnings);
-    FAIL() << "accepted";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(GetParam().expected), std::string::npos) << e.what();
-  }
+  expectRefused(robotParams({"left_finger", "right_finger"}), GetParam());
 }
 
 INSTANTIATE_TEST_SUITE_P(

@@ -5,7 +5,6 @@
 // registrations, and clouds that do not show the box must hold the model. Every wait is on
 // an event with a timeout.
 #include <gtest/gtest.h>
-#include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
 #include <tf2_msgs/TFMessage.h>
 
@@ -237,17 +236,6 @@ class TfEnvironment : public ::testing::Environment {
 
 TfEnvironment* tf_environment = nullptr;  ///< Owned by gtest, set in main().
 
-/// Loads the nodelet into the test's manager under `name` with `params`; whether it started.
-bool loadNodelet(const std::string& name, const XmlRpc::XmlRpcValue& params) {
-  ros::param::set(name, params);
-  nodelet::NodeletLoad load;
-  load.request.name = name;
-  load.request.type = "deformable_collision/DeformableCollisionNodelet";
-  EXPECT_TRUE(ros::service::waitForService(kManager + "/load_nodelet", ros::Duration(kTimeoutS)));
-  EXPECT_TRUE(ros::service::call(kManager + "/load_nodelet", load));
-  return load.response.success;
-}
-
 class RegisterTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -281,7 +269,7 @@ class RegisterTest : public ::testing::Test {
     // camera's pose waits for it instead of being dropped as in a frame tf does not know.
     tf_environment->sendStatic(toTransformStamped(Eigen::Isometry3d::Identity(), ros::Time::now(),
                                                   "test_camera", kCameraOpticalFrame));
-    ASSERT_TRUE(loadNodelet(node, params)) << "the nodelet did not start";
+    ASSERT_TRUE(loadNodelet(kManager, node, params)) << "the nodelet did not start";
     ASSERT_TRUE(waitFor([this] {
       return last_stats_ && camera_publisher_.getNumSubscribers() > 0 &&
              deformed_subscriber_.getNumPublishers() > 0 &&

@@ -5,7 +5,6 @@
 // served; a registered object's clouds leave the fingers' points out. Every wait is on an
 // event with a timeout.
 #include <gtest/gtest.h>
-#include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 
@@ -107,17 +106,6 @@ XmlRpc::XmlRpcValue nodeParams(const std::string& description_param, bool regist
   return params;
 }
 
-/// Loads the nodelet into the test's manager under `name` with `params`; whether it started.
-bool loadNodelet(const std::string& name, const XmlRpc::XmlRpcValue& params) {
-  ros::param::set(name, params);
-  nodelet::NodeletLoad load;
-  load.request.name = name;
-  load.request.type = "deformable_collision/DeformableCollisionNodelet";
-  EXPECT_TRUE(ros::service::waitForService(kManager + "/load_nodelet", ros::Duration(kTimeoutS)));
-  EXPECT_TRUE(ros::service::call(kManager + "/load_nodelet", load));
-  return load.response.success;
-}
-
 class RobotLinksNodeTest : public ::testing::Test {
  protected:
   /// Loads `node` and waits until it has `objects` objects with a rest shape.
@@ -130,7 +118,7 @@ class RobotLinksNodeTest : public ::testing::Test {
           stats_ = stats;
           ++stats_received_;
         }));
-    ASSERT_TRUE(loadNodelet(node, nodeParams(description_param, registered)))
+    ASSERT_TRUE(loadNodelet(kManager, node, nodeParams(description_param, registered)))
         << "the nodelet did not start";
     ASSERT_TRUE(whilePublishing(kOpen, [&] {
       if (registered) publishers->camera.publish(cloudOf(cube(), "base_link"));
