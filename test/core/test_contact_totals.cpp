@@ -26,6 +26,7 @@ SceneContact contactAt(std::uint32_t a, std::uint32_t b, const Eigen::Vector3d& 
   c.contact.depth_m = depth;
   c.force_n = force;
   c.force_error_n = 0.1;
+  c.indentation_error_n = 0.05;
   return c;
 }
 
@@ -87,7 +88,7 @@ TEST(SummarizePairsTest, OneSummaryPerPairWithItsTotals) {
   EXPECT_TRUE(summaries[0].centroid_m.isApprox(Eigen::Vector3d(0.1, 0.0, 0.0)));
   EXPECT_TRUE(summaries[0].force_n.isApprox(Eigen::Vector3d(0.0, 0.0, 4.0)));
   EXPECT_DOUBLE_EQ(summaries[0].largest_depth_m, 0.003);
-  EXPECT_DOUBLE_EQ(summaries[0].force_error_n, 0.2);
+  EXPECT_DOUBLE_EQ(summaries[0].force_error_n, 0.1);  // the indentation's, not the split's
   EXPECT_TRUE(summaries[0].normal.isApprox(Eigen::Vector3d::UnitZ()));
   EXPECT_EQ(summaries[1].object_a, 2u);
   EXPECT_DOUBLE_EQ(summaries[1].area_m2, 0.0);
