@@ -60,8 +60,7 @@ void ContactForces::assignRun(std::vector<SceneContact>& contacts, const Contact
   share(contacts, run, dynamic_force_n, 0.0);
 }
 
-void ContactForces::assignStiffnessRun(std::vector<SceneContact>& contacts,
-                                       const ContactRun& run) {
+void ContactForces::assignStiffnessRun(std::vector<SceneContact>& contacts, const ContactRun& run) {
   const Object& a = *objects_[run.object_a];
   const Object& b = *objects_[run.object_b];
   const double magnitude = stiffnessForce(contacts, run);
