@@ -4,6 +4,8 @@
 #include <sstream>
 #include <string>
 
+#include "deformable_collision/ros/message_vectors.h"
+
 namespace deformable_collision {
 namespace {
 
@@ -156,17 +158,11 @@ void fillContactArray(const Scene& scene, const std::vector<SceneContact>& conta
     to.sphere_a = from.contact.node_a;
     to.sphere_b = from.contact.node_b;
     to.level = static_cast<std::uint8_t>(from.contact.level);
-    to.position.x = from.contact.position.x();
-    to.position.y = from.contact.position.y();
-    to.position.z = from.contact.position.z();
-    to.normal.x = from.contact.normal.x();
-    to.normal.y = from.contact.normal.y();
-    to.normal.z = from.contact.normal.z();
+    to.position = toPointMessage(from.contact.position);
+    to.normal = toVectorMessage(from.contact.normal);
     to.depth = from.contact.depth_m;
     to.error_bound_m = from.contact.error_bound_m;
-    to.force_n.x = from.force_n.x();
-    to.force_n.y = from.force_n.y();
-    to.force_n.z = from.force_n.z();
+    to.force_n = toVectorMessage(from.force_n);
     to.force_error_n = from.force_error_n;
   }
 }

@@ -11,6 +11,7 @@
 #include "deformable_collision/core/response/contact_totals.h"
 #include "deformable_collision/ros/cloud_transform.h"
 #include "deformable_collision/ros/contact_array_serialization.h"
+#include "deformable_collision/ros/message_vectors.h"
 
 namespace deformable_collision {
 namespace {
@@ -388,12 +389,8 @@ void DeformableCollisionNode::publishWrenches(const ros::Time& stamp) {
     geometry_msgs::WrenchStamped message;
     message.header.stamp = stamp;
     message.header.frame_id = slot.params.follow_frame;
-    message.wrench.force.x = wrench.force_n.x();
-    message.wrench.force.y = wrench.force_n.y();
-    message.wrench.force.z = wrench.force_n.z();
-    message.wrench.torque.x = wrench.torque_nm.x();
-    message.wrench.torque.y = wrench.torque_nm.y();
-    message.wrench.torque.z = wrench.torque_nm.z();
+    message.wrench.force = toVectorMessage(wrench.force_n);
+    message.wrench.torque = toVectorMessage(wrench.torque_nm);
     slot.wrench.publish(message);
   }
 }

@@ -1,27 +1,11 @@
 #include "deformable_collision/ros/force_outputs.h"
 
-#include <geometry_msgs/Point.h>
-
 #include <boost/make_shared.hpp>
+
+#include "deformable_collision/ros/message_vectors.h"
 
 namespace deformable_collision {
 namespace {
-
-geometry_msgs::Point toPoint(const Eigen::Vector3d& p) {
-  geometry_msgs::Point point;
-  point.x = p.x();
-  point.y = p.y();
-  point.z = p.z();
-  return point;
-}
-
-geometry_msgs::Vector3 toVector(const Eigen::Vector3d& v) {
-  geometry_msgs::Vector3 vector;
-  vector.x = v.x();
-  vector.y = v.y();
-  vector.z = v.z();
-  return vector;
-}
 
 visualization_msgs::Marker marker(const std_msgs::Header& header, const char* ns, int id,
                                   int type) {
@@ -59,10 +43,10 @@ void fillContactSummaryArray(const Scene& scene, const std::vector<PairSummary>&
     to.object_a = scene.objectConfig(from.object_a).name;
     to.object_b = scene.objectConfig(from.object_b).name;
     to.contacts = static_cast<std::uint32_t>(from.contacts);
-    to.centroid = toPoint(from.centroid_m);
-    to.normal = toVector(from.normal);
+    to.centroid = toPointMessage(from.centroid_m);
+    to.normal = toVectorMessage(from.normal);
     to.largest_depth_m = from.largest_depth_m;
-    to.force_n = toVector(from.force_n);
+    to.force_n = toVectorMessage(from.force_n);
     to.force_error_n = from.force_error_n;
     to.area_m2 = from.area_m2;
   }
@@ -83,18 +67,18 @@ void buildContactForceMarkers(const Scene& scene, const std::vector<PairSummary>
   forces.color.r = 1.0;
   forces.color.g = 0.5;
   for (const SceneContact& c : scene.contacts()) {
-    points.points.push_back(toPoint(c.contact.position));
-    forces.points.push_back(toPoint(c.contact.position));
-    forces.points.push_back(toPoint(c.contact.position + scale_m_per_n * c.force_n));
+    points.points.push_back(toPointMessage(c.contact.position));
+    forces.points.push_back(toPointMessage(c.contact.position));
+    forces.points.push_back(toPointMessage(c.contact.position + scale_m_per_n * c.force_n));
   }
   markers.markers.push_back(points);
   markers.markers.push_back(forces);
   for (std::size_t k = 0; k < summaries.size(); ++k) {
     auto arrow =
         marker(header, "pair_forces", static_cast<int>(k), visualization_msgs::Marker::ARROW);
-    arrow.points.push_back(toPoint(summaries[k].centroid_m));
+    arrow.points.push_back(toPointMessage(summaries[k].centroid_m));
     arrow.points.push_back(
-        toPoint(summaries[k].centroid_m + scale_m_per_n * shownForce(scene, summaries[k])));
+        toPointMessage(summaries[k].centroid_m + scale_m_per_n * shownForce(scene, summaries[k])));
     arrow.scale.x = 0.004;
     arrow.scale.y = 0.008;
     arrow.color.r = 1.0;

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <map>
 
+#include "deformable_collision/ros/message_vectors.h"
+
 namespace deformable_collision {
 namespace {
 
@@ -121,11 +123,7 @@ void HierarchyMarkers::drawObject(Scene& scene, std::size_t object, int level, b
       markers.markers.push_back(std::move(marker));
     }
     visualization_msgs::Marker& marker = markers.markers[slot->second];
-    geometry_msgs::Point center;
-    center.x = sphere.center.x();
-    center.y = sphere.center.y();
-    center.z = sphere.center.z();
-    marker.points.push_back(center);
+    marker.points.push_back(toPointMessage(sphere.center));
     marker.colors.push_back(in_contact ? hit : color);
   }
 }

@@ -177,19 +177,32 @@ struct Squeeze {
 
 /// The jaws' mean forces over the last 50 of 300 cycles, their faces `squeeze_m` inside the
 /// ball's surface each.
-Squeeze squeezeBall(DeformationMode mode, int level, double squeeze_m) {
+/// A ball between two kinematic jaws, without gravity.
+struct BallInJaws {
+  std::unique_ptr<Scene> scene;
+  std::size_t ball = 0, left = 0, right = 0;
+};
+
+BallInJaws ballInJaws(DeformationMode mode, int level) {
   SceneConfig config;
   config.gravity_mps2.setZero();
   config.contact_distance_m = 0.005;
   config.level = level;
-  Scene scene(config);
-  const std::size_t ball = scene.addObject(ballConfig(mode), ballPoints(Eigen::Vector3d::Zero()));
+  BallInJaws made{std::make_unique<Scene>(config)};
+  made.ball = made.scene->addObject(ballConfig(mode), ballPoints(Eigen::Vector3d::Zero()));
   ObjectConfig jaw;
   jaw.kind = ObjectKind::kKinematic;
   jaw.name = "left";
-  const std::size_t left = scene.addObject(jaw, jawPoints(-1.0));
+  made.left = made.scene->addObject(jaw, jawPoints(-1.0));
   jaw.name = "right";
-  const std::size_t right = scene.addObject(jaw, jawPoints(1.0));
+  made.right = made.scene->addObject(jaw, jawPoints(1.0));
+  return made;
+}
+
+Squeeze squeezeBall(DeformationMode mode, int level, double squeeze_m) {
+  BallInJaws made = ballInJaws(mode, level);
+  Scene& scene = *made.scene;
+  const std::size_t ball = made.ball, left = made.left, right = made.right;
   Squeeze mean;
   constexpr int kCycles = 300, kLate = 50;
   for (int cycle = 0; cycle < kCycles; ++cycle) {
@@ -393,17 +406,9 @@ TEST(ForceBoundTest, RestingBall) {
 }
 
 TEST(ForceBoundTest, SqueezedBall) {
-  SceneConfig config;
-  config.gravity_mps2.setZero();
-  config.contact_distance_m = 0.005;
-  Scene scene(config);
-  scene.addObject(ballConfig(DeformationMode::kLinear), ballPoints(Eigen::Vector3d::Zero()));
-  ObjectConfig jaw;
-  jaw.kind = ObjectKind::kKinematic;
-  jaw.name = "left";
-  const std::size_t left = scene.addObject(jaw, jawPoints(-1.0));
-  jaw.name = "right";
-  const std::size_t right = scene.addObject(jaw, jawPoints(1.0));
+  BallInJaws made = ballInJaws(DeformationMode::kLinear, -1);
+  Scene& scene = *made.scene;
+  const std::size_t left = made.left, right = made.right;
   scene.setPose(left, Eigen::Isometry3d(Eigen::Translation3d(-0.045, 0.0, 0.0)));
   scene.setPose(right, Eigen::Isometry3d(Eigen::Translation3d(0.045, 0.0, 0.0)));
   for (int cycle = 0; cycle < 200; ++cycle) scene.cycle();
