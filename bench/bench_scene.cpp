@@ -462,7 +462,9 @@ struct ForcesRun {
 ForcesRun startForcesRun(dc::DemoScene kind, bool forces, int settle) {
   dc::SceneConfig config;
   config.contact_forces = forces;
-  ForcesRun run{dc::makeDemoScene(kind, 0, config), forces};
+  ForcesRun run;
+  run.scene = dc::makeDemoScene(kind, 0, config);
+  run.forces = forces;
   for (int c = 0; c < settle; ++c) {
     dc::driveDemoScene(kind, *run.scene, c * run.scene->config().dt_s);
     run.scene->cycle();
