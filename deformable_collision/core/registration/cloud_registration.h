@@ -22,7 +22,7 @@ struct RegistrationConfig {
   std::size_t max_cloud_points = 2000;
   /// The model is matched through at most this many of its points, spread evenly over the
   /// rest shape; the others follow their clusters' fits (>= 1).
-  std::size_t max_model_points = 3000;
+  std::size_t max_model_points = 1000;
   /// Fewer matches than this fraction of the thinned cloud means the cloud does not show
   /// the object: the model is held where it was ([0, 1]).
   double min_match_ratio = 0.2;

@@ -21,10 +21,7 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
   for (const auto& p : points) box.extend(p);
   const double extent = std::max(box.sizes().maxCoeff(), std::numeric_limits<double>::min());
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells(points.size());
-  // A surface fills cells as the square of their count per side, a volume as the cube:
-  // shrink the cells until about `target` are occupied, starting where a volume would be.
-  double cell = extent / std::cbrt(static_cast<double>(target));
-  for (int attempt = 0; attempt < 40; ++attempt) {
+  const auto oneInEachCell = [&](double cell) {
     for (std::uint32_t i = 0; i < points.size(); ++i) {
       const Eigen::Vector3d scaled = (points[i] - box.min()) / cell;
       const auto axis = [&](int d) { return static_cast<std::uint64_t>(scaled[d]) & 0x1fffff; };
@@ -35,9 +32,23 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
     for (std::size_t k = 0; k < cells.size(); ++k) {
       if (k == 0 || cells[k].first != cells[k - 1].first) chosen.push_back(cells[k].second);
     }
-    if (chosen.size() <= target) break;
-    cell *= 1.0 + 0.5 * (static_cast<double>(chosen.size()) / target - 1.0) + 0.01;
+  };
+  // Cells so large that a volume's points would fill no more than `target` of them hold
+  // about that many of any shape; cells no larger than the spacing of the points spread
+  // along a line hold about one each. A surface fills far fewer cells than a volume of the same
+  // size, so the size is bisected (in its logarithm) between the two until the cells hold 90% to
+  // 100% of `target` points.
+  double large = extent / std::cbrt(static_cast<double>(target));
+  double small = extent / static_cast<double>(points.size());
+  constexpr int kMostSteps = 40;
+  oneInEachCell(large);
+  for (int step = 0; step < kMostSteps; ++step) {
+    if (chosen.size() <= target && chosen.size() >= 0.9 * target) break;
+    const double middle = std::sqrt(large * small);
+    oneInEachCell(middle);
+    (chosen.size() > target ? small : large) = middle;
   }
+  if (chosen.size() > target) oneInEachCell(large);
   if (chosen.size() > target) chosen.resize(target);
   std::sort(chosen.begin(), chosen.end());
   return chosen;
