@@ -57,6 +57,10 @@ constexpr double kPriorWeight = 0.3;
 /// noise from sliding the model along a face seen edge-on, little enough to follow a box
 /// turning a degree and sliding 1.7 mm between clouds within the rounds of one cloud.
 constexpr double kRigidStepPriorShare = 0.1;
+/// ... and that holds its turn (per match, times the squared arm): ten times more, since a
+/// turn is what one view of a round object shows least (a fruit's surface barely changes as
+/// it turns), and noise turned a still fruit by degrees. Chosen on bench_registration_zoo.
+constexpr double kRigidTurnPriorShare = 1.0;
 
 /// Neighbours whose spread gives a matching point's surface normal.
 constexpr std::size_t kNormalNeighbours = 12;
@@ -369,9 +373,10 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidS
     if (distance_of_sample[j] <= threshold)
       arm_squared += (positions[match_of_sample[j]] - center).squaredNorm();
   }
-  const double step_prior = kRigidStepPriorShare * kPriorWeight;
-  normal_matrix.diagonal().head<3>().array() += step_prior * arm_squared + 1e-300;
-  normal_matrix.diagonal().tail<3>().array() += step_prior * static_cast<double>(used);
+  normal_matrix.diagonal().head<3>().array() +=
+      kRigidTurnPriorShare * kPriorWeight * arm_squared + 1e-300;
+  normal_matrix.diagonal().tail<3>().array() +=
+      kRigidStepPriorShare * kPriorWeight * static_cast<double>(used);
   const Eigen::Matrix<double, 6, 1> motion = normal_matrix.ldlt().solve(right_side);
   step.center = center;
   step.translation =
