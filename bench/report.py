@@ -2,10 +2,11 @@
 """Writes the benchmark report from the files of scripts/run_benchmarks.
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv,
-s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv, registration.txt and
-add_object.csv there; writes s1.md, s2.md, s3.md, forces.md, memory.md, registration.md,
-add_object.md, summary.md (headline figures and the targets, met or not) and the plots
-s1_time_vs_points.png, s2_error_vs_time.png, registration_error_vs_time.png,
+s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv, registration.txt,
+registration_zoo*.csv and add_object.csv there; writes s1.md, s2.md, s3.md, forces.md,
+memory.md, registration.md, registration_zoo.md, add_object.md, summary.md (headline figures
+and the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
+registration_error_vs_time.png, registration_zoo_error_vs_time.png,
 add_object_time_vs_points.png. When RESULTS_DIR is the package's bench/results, it also
 writes docs/benchmarks.md (bench/benchmarks_intro.md, then those tables and plots, and
 latency.md of make latency if there) and the headline table between README.md's results
@@ -527,6 +528,104 @@ def registration_plot(results, rows):
     fig.savefig(os.path.join(results, "registration_error_vs_time.png"), dpi=110)
     plt.close(fig)
 
+ZOO_BOUNDS = (("truth", "registration_zoo_truth.csv"), ("model_limit", "registration_zoo_model_limit.csv"),
+              ("seen_limit", "registration_zoo_seen_limit.csv"))
+
+
+def read_zoo(results):
+    """bench_registration_zoo's runs: ours (None if not run), then the bounds by case."""
+    path = os.path.join(results, "registration_zoo.csv")
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    for key, name in ZOO_BOUNDS:
+        bound = os.path.join(results, name)
+        if not os.path.exists(bound):
+            continue
+        with open(bound) as f:
+            by_case = {(r["shape"], r["deformation"]): r for r in csv.DictReader(f)}
+        for r in rows:
+            r[key] = by_case.get((r["shape"], r["deformation"]))
+    return rows
+
+
+def zoo_pair(row, seen, hidden):
+    return f"{float(row[seen]):.2f} / {float(row[hidden]):.2f}" if row else "-"
+
+
+def zoo_targets(rows):
+    """How many cases meet each of issue 58's targets for the zoo."""
+    def count(test):
+        return f"{sum(1 for r in rows if test(r))} of {len(rows)}"
+    rested = lambda r, side: float(r[f"rested_{side}_mm"])  # noqa: E731
+    return table(["target", "cases met"], [
+        ("deformation recovered >= 85% seen, >= 70% hidden",
+         count(lambda r: float(r["recovered_seen"]) >= 0.85 and float(r["recovered_hidden"]) >= 0.7)),
+        ("mean error <= 2 mm seen, <= 4 mm hidden",
+         count(lambda r: rested(r, "seen") <= 2 and rested(r, "hidden") <= 4)),
+        ("after the rest at most half the error at the end of the motion",
+         count(lambda r: rested(r, "seen") <= 0.5 * float(r["end_seen_mm"]))),
+        ("registration <= 3 ms per cloud", count(lambda r: float(r["ms_per_cloud"]) <= 3))])
+
+
+def zoo_report(results, rows):
+    """registration_zoo.md, one row per shape and deformation, and its plot."""
+    text = "# Registration over the zoo\n\n"
+    text += ("`bench_registration_zoo`: five shapes (a sponge, a fruit, a banana, a thin plate, a "
+             "toy figure; 8000 model points, linear, 6 clusters, the same defaults for all), each "
+             "squeezed, bent, twisted, dented, and all at half amplitude while carried 4 cm and "
+             "turned 15 degrees; 40 frames of motion, then 10 at rest; one 320 x 240 depth camera "
+             "(1 mm noise, 5% dropout, 1% flying pixels). Errors in mm, mean over material points, "
+             "seen / hidden side: the rest model left in place, ours at the end of the motion and "
+             "after the rest, the share of the deformation recovered after the rest (1 - ours / "
+             "rest model). Bounds after the rest: ours given the seen ground truth as its cloud, "
+             "and each cluster's least-squares fit to the ground truth of its seen points with "
+             "the correspondences known (what a perfect matching of the seen side leaves); the "
+             "fit to all points is in registration_zoo_model_limit.csv.\n\n")
+    text += table(["shape", "deformation", "rest model", "ours, end of motion", "ours, rested",
+                   "recovered", "ours given the truth", "seen side fitted", "ms per cloud (worst)"],
+                  [(r["shape"], r["deformation"], zoo_pair(r, "rest_seen_mm", "rest_hidden_mm"),
+                    zoo_pair(r, "end_seen_mm", "end_hidden_mm"),
+                    zoo_pair(r, "rested_seen_mm", "rested_hidden_mm"),
+                    f"{100 * float(r['recovered_seen']):.0f}% / "
+                    f"{100 * float(r['recovered_hidden']):.0f}%",
+                    zoo_pair(r.get("truth"), "rested_seen_mm", "rested_hidden_mm"),
+                    zoo_pair(r.get("seen_limit"), "rested_seen_mm", "rested_hidden_mm"),
+                    f"{r['ms_per_cloud']} ({r['worst_ms']})") for r in rows])
+    text += "\n" + zoo_targets(rows)
+    write(results, "registration_zoo.md", text)
+    zoo_plot(results, rows)
+
+
+def zoo_plot(results, rows):
+    """Error against frame, one panel per shape, one line per deformation (seen solid, hidden
+    dashed); the motion ends at the dotted line."""
+    path = os.path.join(results, "registration_zoo_frames.csv")
+    if not os.path.exists(path):
+        return
+    with open(path) as f:
+        frames = list(csv.DictReader(f))
+    shapes = list(dict.fromkeys(r["shape"] for r in rows))
+    fig, axes = plt.subplots(1, len(shapes), figsize=(4 * len(shapes), 4), sharey=True)
+    for ax, shape in zip(axes, shapes):
+        for i, deformation in enumerate(dict.fromkeys(r["deformation"] for r in rows)):
+            series = [r for r in frames if r["shape"] == shape and r["deformation"] == deformation]
+            x = [int(r["frame"]) for r in series]
+            ax.plot(x, [float(r["seen_mm"]) for r in series], color=f"C{i}", label=f"{deformation}, seen")
+            ax.plot(x, [float(r["hidden_mm"]) for r in series], "--", color=f"C{i}",
+                    label=f"{deformation}, hidden")
+        ax.axvline(39.5, linestyle=":", color="grey")
+        ax.set_title(shape)
+        ax.set_xlabel("frame")
+        ax.grid(True, alpha=0.3)
+    axes[0].set_ylabel("mean error, mm")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=5, fontsize=7)
+    fig.suptitle("Registration over the zoo: error against time")
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
+    fig.savefig(os.path.join(results, "registration_zoo_error_vs_time.png"), dpi=100)
+    plt.close(fig)
+
 ADD_OBJECT_SHAPES = {
     "thin_grid": "a grid of 2 layers",
     "thick_grid": "a grid of 16 layers",
@@ -758,7 +857,7 @@ def doc_section(results, name, note="", plot=None):
     return text
 
 
-def benchmarks_doc(results, registration, forces, add_object):
+def benchmarks_doc(results, registration, forces, add_object, zoo):
     """docs/benchmarks.md: the fixed introduction, then every table and plot of this run."""
     sections = [doc_section(results, "summary.md"),
                 doc_section(results, "s1.md", plot="s1_time_vs_points.png"),
@@ -769,6 +868,9 @@ def benchmarks_doc(results, registration, forces, add_object):
     if registration:
         sections.append(doc_section(results, "registration.md",
                                     plot="registration_error_vs_time.png"))
+    if zoo:
+        sections.append(doc_section(results, "registration_zoo.md",
+                                    plot="registration_zoo_error_vs_time.png"))
     if add_object:
         sections.append(doc_section(results, "add_object.md", plot="add_object_time_vs_points.png"))
     sections.append(doc_section(results, "memory.md"))
@@ -810,6 +912,9 @@ def main():
     registration = read_registration(results)
     if registration:
         registration_report(results, registration)
+    zoo = read_zoo(results)
+    if zoo:
+        zoo_report(results, zoo)
     add_object = read_add_object(results)
     if add_object:
         add_object_report(results, add_object)
@@ -819,16 +924,18 @@ def main():
     for name in ["summary.md", "s1.md", "s2.md", "s3.md", "memory.md"] + \
             (["forces.md"] if forces else []) + \
             (["registration.md"] if registration else []) + \
+            (["registration_zoo.md"] if zoo else []) + \
             (["add_object.md"] if add_object else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
     print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "
-          "registration_error_vs_time.png, add_object_time_vs_points.png)")
+          "registration_error_vs_time.png, registration_zoo_error_vs_time.png, "
+          "add_object_time_vs_points.png)")
     # The page and README link to bench/results/: a run on another directory leaves them alone.
     if os.path.realpath(results) != os.path.realpath(os.path.join(PACKAGE, "bench", "results")):
         print(f"report: {results} is not bench/results; docs/benchmarks.md and README.md left alone")
         return
-    benchmarks_doc(results, registration, forces, add_object)
+    benchmarks_doc(results, registration, forces, add_object, zoo)
     print("report: docs/benchmarks.md written")
     if not readme_block(headline):
         print("report: README.md has no results markers; left alone")
