@@ -33,15 +33,20 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
       if (k == 0 || cells[k].first != cells[k - 1].first) chosen.push_back(cells[k].second);
     }
   };
-  // Cells so large that a volume's points would fill no more than `target` of them hold
-  // about that many of any shape; cells no larger than the spacing of the points spread
-  // along a line hold about one each. A surface fills far fewer cells than a volume of the same
-  // size, so the size is bisected (in its logarithm) between the two until the cells hold 90% to
-  // 100% of `target` points.
+  // Cells sized for a volume to fill `target` of them (doubled while a box's partial cells
+  // at its far faces make them more) hold at most that many points of any shape; cells no
+  // larger than the spacing of points spread along a line hold about one each. A surface
+  // fills far fewer cells than a volume of the same size, so the size is bisected (in its
+  // logarithm) between the two until the cells hold 90% to 100% of `target` points.
   double large = extent / std::cbrt(static_cast<double>(target));
   double small = extent / static_cast<double>(points.size());
-  constexpr int kMostSteps = 40;
   oneInEachCell(large);
+  while (chosen.size() > target) {
+    small = large;
+    large *= 2.0;
+    oneInEachCell(large);
+  }
+  constexpr int kMostSteps = 40;
   for (int step = 0; step < kMostSteps; ++step) {
     if (chosen.size() <= target && chosen.size() >= 0.9 * target) break;
     const double middle = std::sqrt(large * small);
@@ -49,7 +54,6 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
     (chosen.size() > target ? small : large) = middle;
   }
   if (chosen.size() > target) oneInEachCell(large);
-  if (chosen.size() > target) chosen.resize(target);
   std::sort(chosen.begin(), chosen.end());
   return chosen;
 }
