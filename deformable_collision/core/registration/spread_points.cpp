@@ -19,7 +19,9 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
   }
   Eigen::AlignedBox3d box;
   for (const auto& p : points) box.extend(p);
-  const double extent = std::max(box.sizes().maxCoeff(), std::numeric_limits<double>::min());
+  const double extent = box.sizes().maxCoeff();
+  // Coincident points fill one cell of any size.
+  if (!(extent > 0.0)) return {0};
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells(points.size());
   const auto oneInEachCell = [&](double cell) {
     for (std::uint32_t i = 0; i < points.size(); ++i) {
@@ -39,7 +41,8 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
   // fills far fewer cells than a volume of the same size, so the size is bisected (in its
   // logarithm) between the two until the cells hold 90% to 100% of `target` points.
   double large = extent / std::cbrt(static_cast<double>(target));
-  double small = extent / static_cast<double>(points.size());
+  double small =
+      std::max(extent / static_cast<double>(points.size()), std::numeric_limits<double>::min());
   oneInEachCell(large);
   while (chosen.size() > target) {
     small = large;
@@ -49,7 +52,7 @@ std::vector<std::uint32_t> spreadPoints(const std::vector<Eigen::Vector3d>& poin
   constexpr int kMostSteps = 40;
   for (int step = 0; step < kMostSteps; ++step) {
     if (chosen.size() <= target && chosen.size() >= 0.9 * target) break;
-    const double middle = std::sqrt(large * small);
+    const double middle = std::sqrt(large) * std::sqrt(small);  // No underflow when tiny.
     oneInEachCell(middle);
     (chosen.size() > target ? small : large) = middle;
   }
