@@ -3,9 +3,9 @@
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv,
 s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv, registration.txt,
-registration_zoo*.csv and add_object.csv there; writes s1.md, s2.md, s3.md, forces.md,
-memory.md, registration.md, registration_zoo.md, add_object.md, summary.md (headline figures
-and the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
+registration_zoo*.csv, registered_objects.csv and add_object.csv there; writes s1.md, s2.md,
+s3.md, forces.md, memory.md, registration.md, registration_zoo.md, registered_objects.md,
+add_object.md, summary.md (headline figures and the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
 registration_error_vs_time.png, registration_zoo_error_vs_time.png,
 add_object_time_vs_points.png. When RESULTS_DIR is the package's bench/results, it also
 writes docs/benchmarks.md (bench/benchmarks_intro.md, then those tables and plots, and
@@ -636,6 +636,39 @@ ADD_OBJECT_MAX_S = 3.0  # the issue's target: every shape up to 1M points made w
 ADD_OBJECT_PER_POINT_SPREAD = 2.0  # and its time per point within this factor at all sizes
 
 
+def read_registered_objects(results):
+    """bench_registered_objects' rows, or None if it was not run."""
+    path = os.path.join(results, "registered_objects.csv")
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def registered_objects_report(results, rows):
+    """registered_objects.md: the cycle's time against the registered objects, both ways."""
+    text = "# Registered objects and the cycle\n\n"
+    text += ("`bench_registered_objects`: N zoo objects (the five shapes in turn, each under the "
+             "combined deformation, 0.5 m apart, 8000 points, 6 linear clusters) on a static "
+             "floor, each registered to its own camera's cloud every frame for 50 frames, timed on "
+             "one thread. *cycle*: the registrations in the cycle (Scene::registerCloud, then the "
+             "cycle). *reader*: the node's way, the registrations on a copy (RegistrationFitter) "
+             "in the reader's time, the cycle taking the fits over and gathering the points near "
+             "each object for the next. Means per frame in ms.\n\n")
+    by_way = {(int(r["objects"]), r["way"]): r for r in rows}
+    counts = sorted({int(r["objects"]) for r in rows})
+    text += table(["objects", "cycle, registering (of it: registrations)",
+                   "cycle, taking over (of it: take-over)", "reader", "same states"],
+                  [(n, f"{float(by_way[(n, 'cycle')]['cycle_ms_mean']):.3f} "
+                       f"({float(by_way[(n, 'cycle')]['take_ms_mean']):.3f})",
+                    f"{float(by_way[(n, 'reader')]['cycle_ms_mean']):.3f} "
+                    f"({float(by_way[(n, 'reader')]['take_ms_mean']):.3f})",
+                    f"{float(by_way[(n, 'reader')]['reader_ms_mean']):.3f}",
+                    "yes" if by_way[(n, "reader")]["final_positions_equal"] == "1" else "no")
+                   for n in counts if (n, "cycle") in by_way and (n, "reader") in by_way])
+    write(results, "registered_objects.md", text)
+
+
 def read_add_object(results):
     """The rows of bench_add_object, by (shape, kind) in the order they came; none if the
     file is not there."""
@@ -857,7 +890,7 @@ def doc_section(results, name, note="", plot=None):
     return text
 
 
-def benchmarks_doc(results, registration, forces, add_object, zoo):
+def benchmarks_doc(results, registration, forces, add_object, zoo, registered_objects):
     """docs/benchmarks.md: the fixed introduction, then every table and plot of this run."""
     sections = [doc_section(results, "summary.md"),
                 doc_section(results, "s1.md", plot="s1_time_vs_points.png"),
@@ -871,6 +904,8 @@ def benchmarks_doc(results, registration, forces, add_object, zoo):
     if zoo:
         sections.append(doc_section(results, "registration_zoo.md",
                                     plot="registration_zoo_error_vs_time.png"))
+    if registered_objects:
+        sections.append(doc_section(results, "registered_objects.md"))
     if add_object:
         sections.append(doc_section(results, "add_object.md", plot="add_object_time_vs_points.png"))
     sections.append(doc_section(results, "memory.md"))
@@ -915,6 +950,9 @@ def main():
     zoo = read_zoo(results)
     if zoo:
         zoo_report(results, zoo)
+    registered_objects = read_registered_objects(results)
+    if registered_objects:
+        registered_objects_report(results, registered_objects)
     add_object = read_add_object(results)
     if add_object:
         add_object_report(results, add_object)
@@ -925,6 +963,7 @@ def main():
             (["forces.md"] if forces else []) + \
             (["registration.md"] if registration else []) + \
             (["registration_zoo.md"] if zoo else []) + \
+            (["registered_objects.md"] if registered_objects else []) + \
             (["add_object.md"] if add_object else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
@@ -935,7 +974,7 @@ def main():
     if os.path.realpath(results) != os.path.realpath(os.path.join(PACKAGE, "bench", "results")):
         print(f"report: {results} is not bench/results; docs/benchmarks.md and README.md left alone")
         return
-    benchmarks_doc(results, registration, forces, add_object, zoo)
+    benchmarks_doc(results, registration, forces, add_object, zoo, registered_objects)
     print("report: docs/benchmarks.md written")
     if not readme_block(headline):
         print("report: README.md has no results markers; left alone")

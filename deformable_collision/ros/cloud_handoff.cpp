@@ -26,6 +26,7 @@ void CloudHandoff::put(std::size_t object, ReadCloud& cloud) {
     ReadCloud& newer = waiting_[object];
     if (newer.prepared.empty() && !cloud.prepared.empty())
       newer.prepared = std::move(cloud.prepared);
+    if (!newer.fitted && cloud.fitted && newer.registration) keepOlderFit(newer, cloud);
     ++coalesced_;
     replaced_since_cycle_[object] = true;
     return;
@@ -33,6 +34,13 @@ void CloudHandoff::put(std::size_t object, ReadCloud& cloud) {
   is_waiting_[object] = true;
   waiting_objects_.push_back(object);
   if (starts_cycle_[object] && !taken_early_[object]) ++fresh_starting_cycles_;
+}
+
+void CloudHandoff::keepOlderFit(ReadCloud& newer, ReadCloud& older) {
+  std::swap(newer.points, older.points);
+  std::swap(newer.fit, older.fit);
+  newer.fitted = true;
+  newer.fit_residual_m = older.fit_residual_m;
 }
 
 bool CloudHandoff::ready(bool all) const {

@@ -31,6 +31,10 @@ struct ReadCloud {
   TrackedFit fit;
   /// Whether `fit` holds the fit of this cloud, and `points` then its fitted points.
   bool fitted = false;
+  /// on_cloud register: the reader's registration of the cloud (RegistrationFitter). Not
+  /// held, it is the fit in `fit` and `points`; held, `fit` may hold a fit it replaced.
+  std::optional<RegistrationReport> registration;
+  double fit_residual_m = 0.0;  ///< The mean residual of the registration that made `fit`.
 };
 
 /// The newest read cloud of each object, passed from the thread that reads clouds to the
@@ -51,8 +55,9 @@ class CloudHandoff {
 
   /// Reader: makes `cloud` object's waiting cloud; `cloud` gets back a buffer to read the
   /// next one into (its contents are stale). A cloud replaced before it was taken passes its
-  /// prepared object on to the newer one if that has none: a tracked object's first cloud
-  /// makes the object, and the clouds after it are fits of that object.
+  /// prepared object on to the newer one if that has none (a tracked object's first cloud
+  /// makes the object, and the clouds after it are fits of that object), and its fit if the
+  /// newer one is a held registration (the object's newest fit is still the older one's).
   void put(std::size_t object, ReadCloud& cloud);
   /// Whether, since the last takeForCycle(), a cloud of an object that starts cycles came
   /// (waiting, or taken early); with `all`, one of every such object.
@@ -72,6 +77,9 @@ class CloudHandoff {
   std::uint64_t coalesced() const;
 
  private:
+  /// A held registration `newer` takes over the fit of the `older` cloud it replaced.
+  static void keepOlderFit(ReadCloud& newer, ReadCloud& older);
+
   mutable std::mutex mutex_;
   std::vector<ReadCloud> waiting_;
   std::vector<bool> is_waiting_;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <iterator>
+#include <stdexcept>
 #include <utility>
 
 #include "deformable_collision/ros/cloud_transform.h"
@@ -33,6 +34,17 @@ CloudReader::CloudReader(const NodeConfig& config, std::vector<ObjectSlot>& slot
       readers_(slots.size()) {}
 
 void CloudReader::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t index) {
+  const auto start = Clock::now();
+  receiveCloud(cloud, index);
+  countBusy(start);
+}
+
+void CloudReader::countBusy(Clock::time_point start) {
+  busy_ns_ += static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - start).count());
+}
+
+void CloudReader::receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t index) {
   ObjectSlot& slot = slots_[index];
   auto& awaiting = readers_[index].awaiting_transform;
   ++clouds_received_;
@@ -85,6 +97,7 @@ std::string CloudReader::unknownFrameProblem(const ObjectSlot& slot,
 void CloudReader::retryAwaitingClouds() {
   const auto now = Clock::now();
   for (std::size_t index = 0; index < slots_.size(); ++index) retryAwaitingClouds(index, now);
+  countBusy(now);
 }
 
 void CloudReader::retryAwaitingClouds(std::size_t index, Clock::time_point now) {
@@ -235,8 +248,11 @@ void CloudReader::prepare(std::size_t index, bool exists, ReadCloud& read) {
   const bool tracked = slot.params.on_cloud == OnCloud::kTrack;
   read.prepared = Scene::PreparedObject();
   read.fitted = false;
+  read.registration.reset();
   if (tracked && exists) {
     fitTrackedCloud(reader, read);
+  } else if (exists && slot.params.on_cloud == OnCloud::kRegister) {
+    registerCloud(slots_[index], reader, read);
   } else if (!exists || slot.params.on_cloud == OnCloud::kReset) {
     // A new shape's clusters and hierarchy (tens of milliseconds for thousands of points) are
     // built here, off the cycle's thread, which then only puts the object in the scene. The
@@ -271,6 +287,20 @@ void CloudReader::fitTrackedCloud(ObjectReader& reader, ReadCloud& read) {
   }
   reader.fitter->fit(read.points, read.fit);
   read.fitted = true;
+}
+
+void CloudReader::registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadCloud& read) {
+  // The cycle made the fitter before it said that the object exists, and leaves it to us.
+  if (!reader.registration) {
+    if (!slot.fitter) throw std::logic_error("the object exists without its registration");
+    reader.registration = std::move(slot.fitter);
+    slot.fitter.reset();
+  }
+  if (slot.near_points.take(reader.near_points))
+    reader.registration->setPointsNearObject(reader.near_points);
+  read.registration = reader.registration->fit(read.points, read.viewpoint, read.fit);
+  read.fitted = !read.registration->held;
+  read.fit_residual_m = read.registration->mean_residual_m;
 }
 
 CloudReader::TransformOutcome CloudReader::transformPoints(const ObjectSlot& slot,

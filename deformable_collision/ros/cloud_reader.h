@@ -25,10 +25,10 @@ namespace deformable_collision {
 
 /// The node's reader side, run by its reader thread: converts each object's cloud,
 /// transforms it by tf into the object's frame and checks it, makes new objects
-/// (Scene::prepareObject) and fits tracked ones to their clouds (TrackedFitter), then hands
-/// each to the cycle (CloudHandoff). A cloud whose transform has not come waits, in arrival
-/// order, up to tf_wait_s. It alone touches its per-object state; the drop reports (either
-/// thread) are guarded by a mutex of its own.
+/// (Scene::prepareObject), fits tracked ones to their clouds (TrackedFitter) and registers
+/// registered ones (RegistrationFitter), then hands each to the cycle (CloudHandoff). A
+/// cloud whose transform has not come waits, in arrival order, up to tf_wait_s. It alone touches
+/// its per-object state; the drop reports (either thread) are guarded by a mutex of its own.
 class CloudReader {
  public:
   using Clock = std::chrono::steady_clock;
@@ -51,6 +51,9 @@ class CloudReader {
   std::uint64_t cloudsReceived() const { return clouds_received_; }
   std::uint64_t cloudsRejected() const { return clouds_rejected_; }
   std::uint64_t nonFinitePoints() const { return non_finite_points_; }
+  /// The time onCloud() and retryAwaitingClouds() took since construction: the reader
+  /// thread's load, which registrations make the largest part of.
+  double busySeconds() const { return static_cast<double>(busy_ns_) * 1e-9; }
 
  private:
   struct AwaitingCloud {
@@ -69,10 +72,18 @@ class CloudReader {
     std::optional<TrackedFitter> fitter;
     std::size_t tracked_cloud_size = 0;
     std::vector<std::uint32_t> tracked_indices;
+    /// on_cloud register, once the object exists: its registration, taken from the slot,
+    /// and the other objects' points near it, as the cycle last gave them.
+    std::optional<RegistrationFitter> registration;
+    std::vector<Eigen::Vector3d> near_points;
   };
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
   enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
 
+  /// onCloud() but for counting the time it takes.
+  void receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
+  /// Adds the time since `start` to busy_ns_.
+  void countBusy(Clock::time_point start);
   /// Whether tf may still be learning its frames, so that an unknown frame may yet come.
   bool tfFilling() const;
   /// The frame a cloud of this object is placed in: its follow_frame or the fixed frame.
@@ -108,6 +119,9 @@ class CloudReader {
   /// Fits a tracked object's cloud into `read.fit`, its fitted points into `read.points`,
   /// for the cycle to take over.
   static void fitTrackedCloud(ObjectReader& reader, ReadCloud& read);
+  /// Registers a registered object's cloud into `read.registration`, its fit (unless held)
+  /// into `read.fit` and `read.points`, for the cycle to take over.
+  static void registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadCloud& read);
   /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
   /// it never will (no frame, an unknown frame once tf has filled, not finite).
   TransformOutcome transformPoints(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
@@ -127,6 +141,7 @@ class CloudReader {
   std::atomic<std::uint64_t> clouds_received_{0};
   std::atomic<std::uint64_t> clouds_rejected_{0};
   std::atomic<std::uint64_t> non_finite_points_{0};
+  std::atomic<std::uint64_t> busy_ns_{0};
 };
 
 }  // namespace deformable_collision

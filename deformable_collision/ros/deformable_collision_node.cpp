@@ -257,11 +257,12 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
   } else if (slot.params.on_cloud == OnCloud::kReset) {
     scene_.resetRestShape(*slot.index, std::move(cloud.prepared));
   } else if (slot.params.on_cloud == OnCloud::kRegister) {
-    registerCloud(slot, cloud);
+    takeRegistration(slot, cloud);
   }
   // A tracked object's clouds after its first are fits the reader made; the first one the
   // cycle takes may be one of them, bringing the object made from the cloud it replaced.
-  if (cloud.fitted) scene_.observeFitted(*slot.index, cloud.points, cloud.fit);
+  if (cloud.fitted && slot.params.on_cloud == OnCloud::kTrack)
+    scene_.observeFitted(*slot.index, cloud.points, cloud.fit);
   if (pose) {
     scene_.setPose(*slot.index, *pose);
     slot.last_pose = *pose;
@@ -278,7 +279,7 @@ void DeformableCollisionNode::addObject(ObjectSlot& slot, ReadCloud& cloud) {
   ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
            points.size(), slot.subscriber.getTopic().c_str(), toString(slot.params.object.kind));
   warnIfPorous(slot.params.object.name, points);
-  slot.exists = true;
+  startRegistration(slot);
 }
 
 void DeformableCollisionNode::warnIfPorous(const std::string& name,
@@ -336,6 +337,7 @@ void DeformableCollisionNode::runCycle() {
   }
   followFrames();
   scene_.cycle();
+  shareNearPoints();
   times.cycled = Clock::now();
   outputs_.publishContacts(scene_, header);
   times.contacts_published = Clock::now();
@@ -420,6 +422,7 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   counts.clouds_rejected = reader_.cloudsRejected();
   counts.clouds_coalesced = handoff_.coalesced() + clouds_superseded_;
   counts.non_finite_points = reader_.nonFinitePoints();
+  counts.reader_busy_s = reader_.busySeconds();
   outputs_.publishStats(scene_, header, times, oldest_input, points, counts,
                         [this](Stats& stats) { fillRegistrationStats(stats); });
 }

@@ -33,16 +33,17 @@ namespace deformable_collision {
 /// subscribed. Two threads of its own, so that reading a cloud never delays a cycle:
 /// - the reader (reader_queue_, one spinner thread) runs the cloud subscriptions and the
 ///   retries of clouds waiting for tf: reader_ (CloudReader) converts, transforms and
-///   checks each cloud, makes new objects and fits tracked ones to their clouds, and hands
-///   each to the cycle through handoff_.
+///   checks each cloud, makes new objects, fits tracked ones to their clouds and registers
+///   registered ones, and hands each to the cycle through handoff_.
 /// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles, the
 ///   services and the outputs' connect and disconnect callbacks (CountedPublisher). It
 ///   alone touches scene_, the cycle members of slots_ (index, poses, model, registration,
 ///   the deformed publisher's count), taken_ and outputs_ (NodeOutputs).
-/// Between them: handoff_ (its own mutex), the atomics of slots_, the reader's counters and
-/// drop reports (its own mutex), and the wake-up flag. tf_buffer_ is thread-safe and filled
-/// by the listener's own thread. Everything else is set in the constructor and only read
-/// afterwards.
+/// Between them: handoff_ and each slot's near_points (their own mutexes), a registered
+/// slot's fitter (the cycle's until it sets `exists`, then the reader's), the atomics of
+/// slots_, the reader's counters and drop reports (its own mutex), and the wake-up flag. tf_buffer_
+/// is thread-safe and filled by the listener's own thread. Everything else is set in the
+/// constructor and only read afterwards.
 class DeformableCollisionNode {
  public:
   /// Loads and validates every parameter before subscribing to anything.
@@ -87,8 +88,13 @@ class DeformableCollisionNode {
   /// Creates a robot link's object from its surface at its frame's pose, once tf has it;
   /// whether the object exists.
   bool placeLink(ObjectSlot& slot);
-  /// Fits a registered object to a cloud in fixed_frame; keeps the report for ~stats.
-  void registerCloud(ObjectSlot& slot, const ReadCloud& cloud);
+  /// Marks an object as in the scene for the reader; a registered one gets its fitter first.
+  void startRegistration(ObjectSlot& slot);
+  /// Takes the reader's registration of a cloud: its fit, and its report for ~stats.
+  void takeRegistration(ObjectSlot& slot, ReadCloud& cloud);
+  /// Gives each registered object's reader the other objects' points near it, as they are
+  /// after this cycle.
+  void shareNearPoints();
   /// Says that a registration held the model, at most once per 5 s per object.
   void reportHeld(ObjectSlot& slot);
   void fillRegistrationStats(Stats& stats) const;
@@ -148,6 +154,7 @@ class DeformableCollisionNode {
   // The cycle's.
   std::vector<ReadCloud> taken_;
   std::vector<std::size_t> taken_slots_;
+  std::vector<Eigen::Vector3d> near_points_;  ///< shareNearPoints()' buffer.
   /// A cloud applied to its object since the last cycle, early or by the cycle itself.
   struct AppliedCloud {
     bool pending = false;  ///< Applied, its contacts not yet published.

@@ -88,6 +88,7 @@ void NodeOutputs::fillStats(const Scene& scene, const std_msgs::Header& header,
   stats.clouds_rejected = counts.clouds_rejected;
   stats.clouds_coalesced = counts.clouds_coalesced;
   stats.non_finite_points = counts.non_finite_points;
+  stats.reader_busy_s = counts.reader_busy_s;
 }
 
 }  // namespace deformable_collision

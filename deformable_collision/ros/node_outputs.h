@@ -42,6 +42,7 @@ class NodeOutputs {
     std::uint64_t clouds_rejected = 0;
     std::uint64_t clouds_coalesced = 0;
     std::uint64_t non_finite_points = 0;
+    double reader_busy_s = 0.0;
   };
 
   /// A cycle longer than `cycle_period` counts as an overrun; latencies are summarised

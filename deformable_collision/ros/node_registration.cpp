@@ -1,5 +1,5 @@
-// The node's objects with on_cloud: register: their models from model_file, their clouds'
-// registrations and what ~stats says of them.
+// The node's objects with on_cloud: register: their models from model_file, the
+// registrations of their clouds (on the reader thread) and what ~stats says of them.
 #include <stdexcept>
 
 #include "deformable_collision/ros/cloud_transform.h"
@@ -54,7 +54,7 @@ bool DeformableCollisionNode::placeModel(ObjectSlot& slot) {
   for (Eigen::Vector3d& p : placed) p = *pose * p;
   // The file's points are kept until the object exists, so that a failure tries again.
   slot.index = scene_.addObject(params.object, std::move(placed));
-  slot.exists = true;
+  startRegistration(slot);
   const std::size_t count = slot.model_points.size();
   slot.model_points = {};
   ROS_INFO("object '%s': rest shape of %zu points from %s at the pose of '%s', %s",
@@ -74,9 +74,28 @@ bool DeformableCollisionNode::placeModels() {
   return waiting;
 }
 
-void DeformableCollisionNode::registerCloud(ObjectSlot& slot, const ReadCloud& cloud) {
-  slot.registration = scene_.registerCloud(*slot.index, cloud.points, cloud.viewpoint);
+void DeformableCollisionNode::startRegistration(ObjectSlot& slot) {
+  // The reader registers the clouds on a copy of the object, which must exist before the
+  // reader is told that the object does.
+  if (slot.params.on_cloud == OnCloud::kRegister)
+    slot.fitter.emplace(scene_.registrationFitter(*slot.index));
+  slot.exists = true;
+}
+
+void DeformableCollisionNode::takeRegistration(ObjectSlot& slot, ReadCloud& cloud) {
+  if (!cloud.registration) return;
+  slot.registration = *cloud.registration;
   if (slot.registration.held) reportHeld(slot);
+  if (cloud.fitted)
+    scene_.observeRegistered(*slot.index, cloud.points, cloud.fit, cloud.fit_residual_m);
+}
+
+void DeformableCollisionNode::shareNearPoints() {
+  for (ObjectSlot& slot : slots_) {
+    if (!slot.index || slot.params.on_cloud != OnCloud::kRegister) continue;
+    scene_.pointsNearObject(*slot.index, near_points_);
+    slot.near_points.put(near_points_);
+  }
 }
 
 void DeformableCollisionNode::reportHeld(ObjectSlot& slot) {

@@ -80,6 +80,8 @@ struct StatsRecord {
   LatencyPeriods latency_periods;
   std::size_t cycles = 0;
   ros::WallTime first_cycle;
+  ros::WallTime before_figures_time;  ///< When before_figures came (the first cycle without).
+  ros::WallTime last_time;            ///< When `last` came.
   /// The figures leave out the cycles of this long after the first (objects being made).
   double warmup_s = 0.0;
   /// When the object count last grew, after the first cycle: a warm-up shorter than this
@@ -88,13 +90,16 @@ struct StatsRecord {
 
   void add(const deformable_collision::Stats& stats) {
     if (stats.objects == 0) return;
-    if (cycles == 0) first_cycle = ros::WallTime::now();
-    const double since_first_s = (ros::WallTime::now() - first_cycle).toSec();
+    const ros::WallTime now = ros::WallTime::now();
+    if (cycles == 0) first_cycle = before_figures_time = now;
+    const double since_first_s = (now - first_cycle).toSec();
     if (stats.objects > last.objects) last_object_made_s = since_first_s;
     ++cycles;
     last = stats;
+    last_time = now;
     if (since_first_s < warmup_s) {
       before_figures = stats;
+      before_figures_time = now;
       return;
     }
     input.add(stats.input_ms);
@@ -339,6 +344,12 @@ void printReport(StatsRecord& record, double duration_s) {
               static_cast<unsigned long>(last.clouds_rejected),
               static_cast<unsigned long>(last.clouds_coalesced),
               static_cast<unsigned long>(last.non_finite_points));
+  const double busy_s = last.reader_busy_s - record.before_figures.reader_busy_s;
+  const double span_s = (record.last_time - record.before_figures_time).toSec();
+  if (span_s > 0.0) {
+    std::printf("reader thread busy %.1f%% of the time (%.3f s in %.1f s)\n",
+                100.0 * busy_s / span_s, busy_s, span_s);
+  }
 }
 
 }  // namespace

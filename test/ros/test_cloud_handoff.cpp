@@ -345,5 +345,42 @@ TEST(CloudHandoff, AReplacedCloudPassesItsPreparedObjectToANewerOneWithout) {
   EXPECT_EQ(reset_second.prepared.trackedFitter().pointCount(), 60u);
 }
 
+/// A registered cloud numbered `sequence`: held, or a fit of that residual.
+ReadCloud registered(double sequence, bool held, double residual_m = 0.0) {
+  ReadCloud cloud = numbered(4, sequence);
+  cloud.registration.emplace();
+  cloud.registration->held = held;
+  cloud.fitted = !held;
+  cloud.fit_residual_m = residual_m;
+  return cloud;
+}
+
+// A held registration carries no fit: the fit it replaced is still the object's newest, and
+// the cycle must get it with the held cloud's report. A fit replaces a fit as any cloud does.
+TEST(CloudHandoff, AHeldRegistrationKeepsTheFitItReplaced) {
+  CloudHandoff handoff({true});
+  ReadCloud fit = registered(1.0, false, 0.002);
+  handoff.put(0, fit);
+  ReadCloud held = registered(2.0, true);
+  handoff.put(0, held);
+  std::vector<ReadCloud> taken(1);
+  std::vector<std::size_t> objects;
+  handoff.takeForCycle(taken, objects);
+  ASSERT_TRUE(taken[0].registration.has_value());
+  EXPECT_TRUE(taken[0].registration->held);
+  EXPECT_TRUE(taken[0].fitted);
+  EXPECT_EQ(taken[0].points[0].x(), 1.0) << "the older cloud's fitted points";
+  EXPECT_EQ(taken[0].fit_residual_m, 0.002);
+
+  ReadCloud first = registered(3.0, false, 0.001);
+  handoff.put(0, first);
+  ReadCloud second = registered(4.0, false, 0.003);
+  handoff.put(0, second);
+  handoff.takeForCycle(taken, objects);
+  EXPECT_EQ(taken[0].points[0].x(), 4.0);
+  EXPECT_EQ(taken[0].fit_residual_m, 0.003);
+  EXPECT_FALSE(taken[0].registration->held);
+}
+
 }  // namespace
 }  // namespace deformable_collision

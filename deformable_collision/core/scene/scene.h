@@ -17,6 +17,7 @@
 #include "deformable_collision/core/registration/cloud_registration.h"
 #include "deformable_collision/core/response/contact_forces.h"
 #include "deformable_collision/core/response/contact_response.h"
+#include "deformable_collision/core/scene/registration_fitter.h"
 #include "deformable_collision/core/scene/tracked_fitter.h"
 #include "deformable_collision/core/shape_matching/shape_matching.h"
 
@@ -218,6 +219,29 @@ class Scene {
       std::size_t object, const std::vector<Eigen::Vector3d>& cloud_m,
       const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt);
 
+  /// A registration of the clouds of tracked object `object` from its state now, to run on
+  /// another thread (RegistrationFitter).
+  /// @throw std::invalid_argument if the object is not tracked, std::out_of_range for a bad
+  ///        index.
+  RegistrationFitter registrationFitter(std::size_t object) const;
+
+  /// Takes over a cloud registered by a fitter of the object (RegistrationFitter::fit, not
+  /// held), as observeFitted() takes a tracked fit, with that registration's mean residual
+  /// (what bounds the contact forces' indentations, as after registerCloud()).
+  /// @throw as observeFitted(); nothing changes then.
+  void observeRegistered(std::size_t object, std::vector<Eigen::Vector3d>& points_m,
+                         const TrackedFit& fit, double mean_residual_m);
+
+  /// Into `points_m` (its capacity reused): the points of the objects other than `object`
+  /// that registerCloud() leaves out of its clouds when they are closer than the contact
+  /// distance (RegistrationConfig::exclude_near_other_objects), as the objects are now.
+  /// Those within the object's root sphere grown by how far a registration may move it
+  /// (iterations times max_correspondence_m) and the contact distance: a cloud point beyond
+  /// is never matched. Empty if the configuration excludes nothing or the object is alone.
+  /// Visits only the other objects' nodes that reach that sphere.
+  /// @throw std::out_of_range for a bad index.
+  void pointsNearObject(std::size_t object, std::vector<Eigen::Vector3d>& points_m);
+
   /// One cycle; its contacts are contacts() (with their forces) and its figures stats(). A pair of
   /// objects neither of which changed since the last detection (the last cycle's, or
   /// detectAhead()'s), at the same level, keeps that detection's contacts without a query
@@ -301,11 +325,9 @@ class Scene {
   Object& trackedObject(std::size_t object);
   void refreshStaleTrees();
 
-  // Registration of a tracked object's clouds (registration.cpp).
-  struct NearOtherObjects;
-  /// Whether a point of an object other than `object` lies closer than `distance_m` to
-  /// `point_m`, on the objects' current state.
-  bool nearOtherObject(std::size_t object, const Eigen::Vector3d& point_m, double distance_m);
+  /// Appends the points of `object` within `radius_m` of `center_m` to `points_m`.
+  void appendPointsWithin(std::size_t object, const Eigen::Vector3d& center_m, double radius_m,
+                          std::vector<Eigen::Vector3d>& points_m);
 
   // The cycle's detection (detection.cpp).
   /// The candidate object pairs of the objects' current boxes.
@@ -357,7 +379,8 @@ class Scene {
     std::size_t point_tests = 0;
   };
   DetectionAhead detection_ahead_;
-  std::vector<std::uint32_t> proximity_stack_;  ///< Nodes nearOtherObject still has to visit.
+  std::vector<std::uint32_t> proximity_stack_;  ///< Nodes appendPointsWithin has to visit.
+  std::vector<Eigen::Vector3d> near_points_;    ///< registerCloud()'s, for pointsNearObject.
   QueryCounters query_counters_;
   CycleStats stats_;
   ContactResponse response_;  ///< Reads objects_, contacts_, contact_runs_ and config_.

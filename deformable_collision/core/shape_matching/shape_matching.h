@@ -287,15 +287,16 @@ class ShapeMatchingBody {
 
  private:
   friend class TrackedFitter;
-  /// A copy that only tracks (TrackedFitter's): the rest shape shared, the state copied, a
-  /// waiting deferred move made, but no velocities (track() makes them all zero, and sums
-  /// at rest never read them) and no scratch for displacements.
+  friend class RegistrationFitter;
+  /// A copy that only tracks (TrackedFitter's, RegistrationFitter's): the rest shape shared, the
+  /// state copied, a waiting deferred move made, but no velocities (track() makes them all zero,
+  /// and sums at rest never read them) and no scratch for displacements.
   ShapeMatchingBody trackingCopy() const;
   /// Passes what its last track() left, for takeTrackedState() of the body it copies: the
   /// points swapped into `positions` (a buffer of the body's size), the sums and fits copied
   /// into `state`. It keeps its fit, from which its next track() carries on, but its points
-  /// are then `positions`' former buffer: only track() may follow, which TrackedFitter, the
-  /// one caller, keeps to.
+  /// are then `positions`' former buffer: only track() may follow, which the two fitters, the
+  /// callers, keep to (a registration reads the fits, never the points).
   void giveTrackedState(std::vector<Eigen::Vector3d>& positions, TrackedState& state);
   template <DeformationMode Mode, bool Damped>
   void simulate(double dt_s, const Eigen::Vector3d& acceleration_mps2);

@@ -9,6 +9,7 @@
 
 #include "deformable_collision/core/hierarchy/node_slabs.h"
 #include "deformable_collision/core/registration/cloud_registration.h"
+#include "deformable_collision/core/registration/near_points_filter.h"
 #include "deformable_collision/core/response/detail/contact_memory.h"
 #include "deformable_collision/core/response/detail/dent_scratch.h"
 #include "deformable_collision/core/response/detail/fixed_planes.h"
@@ -49,6 +50,8 @@ struct SceneObject {
   ContactMemory contact_memory;
   /// Tracked objects fitted to unordered clouds: made on the first such cloud.
   std::optional<CloudRegistration> registration;
+  /// What its registration leaves out: the others' points near it (Scene::pointsNearObject).
+  NearPointsFilter near_points;
   /// The last registered cloud's mean residual: how far its indentations may be off.
   double registration_residual_m = 0.0;
 

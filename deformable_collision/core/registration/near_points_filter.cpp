@@ -1,0 +1,16 @@
+#include "deformable_collision/core/registration/near_points_filter.h"
+
+namespace deformable_collision {
+
+void NearPointsFilter::reset(std::vector<Eigen::Vector3d>& points_m, double distance_m) {
+  points_.swap(points_m);
+  index_.build(points_);
+  squared_distance_m2_ = distance_m * distance_m;
+}
+
+bool NearPointsFilter::excludes(const Eigen::Vector3d& point_m) {
+  NearestPointIndex::Nearest nearest;
+  return index_.nearest(point_m, nearest) && nearest.squared_distance_m2 < squared_distance_m2_;
+}
+
+}  // namespace deformable_collision
