@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <limits>
 #include <random>
@@ -69,6 +70,15 @@ TEST_P(NearestPointIndexTest, FindsThePointBruteForceFinds) {
     ASSERT_LT(found.index, points.size());
     EXPECT_EQ(found.squared_distance_m2, best) << "query " << q;
     EXPECT_EQ((points[found.index] - query).squaredNorm(), found.squared_distance_m2);
+    // Bounded: found exactly when the nearest lies below the bound, and then as near.
+    const double infinity = std::numeric_limits<double>::infinity();
+    for (const double bound :
+         {0.5 * best, best, std::nextafter(best, infinity), 4.0 * best + 1e-300}) {
+      NearestPointIndex::Nearest within;
+      ASSERT_EQ(index.nearestWithin(query, bound, within), best < bound)
+          << "query " << q << ", bound " << bound;
+      if (best < bound) EXPECT_EQ(within.squared_distance_m2, best) << "query " << q;
+    }
   }
 }
 

@@ -43,6 +43,14 @@ bool NearestPointIndex::nearest(const Eigen::Vector3d& query, Nearest& found) co
   return true;
 }
 
+bool NearestPointIndex::nearestWithin(const Eigen::Vector3d& query, double below_squared_m2,
+                                      Nearest& found) const {
+  found.squared_distance_m2 = below_squared_m2;
+  if (order_.empty()) return false;
+  search(0, static_cast<std::uint32_t>(order_.size()), query, found);
+  return found.squared_distance_m2 < below_squared_m2;
+}
+
 void NearestPointIndex::search(std::uint32_t begin, std::uint32_t end, const Eigen::Vector3d& query,
                                Nearest& best) const {
   const std::vector<Eigen::Vector3d>& points = *points_;

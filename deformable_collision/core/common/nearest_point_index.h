@@ -24,6 +24,10 @@ class NearestPointIndex {
   /// The nearest indexed point to `query` (of equally near ones, any); false if no point
   /// is indexed.
   bool nearest(const Eigen::Vector3d& query, Nearest& found) const;
+  /// The nearest indexed point to `query` at a squared distance below `below_squared_m2`;
+  /// false if there is none. The bound prunes the search from the start: a query far from
+  /// every point costs a few nodes.
+  bool nearestWithin(const Eigen::Vector3d& query, double below_squared_m2, Nearest& found) const;
 
   std::size_t size() const { return order_.size(); }
 

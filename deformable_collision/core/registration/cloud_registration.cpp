@@ -204,7 +204,9 @@ struct CloudRegistration::Workspace {
   /// Places the matching points by the clusters' fits and builds the tree over those that
   /// face `viewpoint` (all of them without one).
   void placeMatchingPoints(const std::optional<Eigen::Vector3d>& viewpoint);
-  double matchSamples();
+  /// Matches each sample to its nearest matching point within `max_distance_m`; the
+  /// median distance.
+  double matchSamples(double max_distance_m);
   /// Sums each matched point's targets and finds the object's rigid step; the matches.
   std::size_t gatherTargets(double threshold, RigidStep& step);
   /// Refits every cluster: the matches' targets against the cluster's last transform moved
@@ -314,18 +316,23 @@ void CloudRegistration::Workspace::placeMatchingPoints(
   tree.build(tree_positions);
 }
 
-double CloudRegistration::Workspace::matchSamples() {
+double CloudRegistration::Workspace::matchSamples(double max_distance_m) {
   sorted_distances.clear();
   if (tree_positions.empty()) {
     std::fill(distance_of_sample.begin(), distance_of_sample.end(),
               std::numeric_limits<double>::infinity());
     return 0.0;
   }
+  // A sample beyond max_distance_m is never matched, and its distance only has to stay
+  // above the median's reach: the search stops at the bound (a hair over it, so that no
+  // distance that rounds to it is lost), and the sample counts as infinitely far.
+  const double bound = max_distance_m * (1.0 + 1e-9);
   for (std::size_t j = 0; j < samples.size(); ++j) {
     NearestPointIndex::Nearest nearest;
-    tree.nearest(samples[j], nearest);
-    match_of_sample[j] = tree_members[nearest.index];
-    distance_of_sample[j] = std::sqrt(nearest.squared_distance_m2);
+    const bool found = tree.nearestWithin(samples[j], bound * bound, nearest);
+    match_of_sample[j] = found ? tree_members[nearest.index] : 0;
+    distance_of_sample[j] =
+        found ? std::sqrt(nearest.squared_distance_m2) : std::numeric_limits<double>::infinity();
     sorted_distances.push_back(distance_of_sample[j]);
   }
   if (sorted_distances.empty()) return 0.0;
@@ -540,7 +547,7 @@ RegistrationReport CloudRegistration::registerCloud(
   int rounds_done = 0;
   for (int round = 0; round < config_.iterations; ++round) {
     w.placeMatchingPoints(viewpoint_m);
-    const double median = w.matchSamples();
+    const double median = w.matchSamples(config_.max_correspondence_m);
     threshold = std::min(
         config_.max_correspondence_m,
         std::max(kMedianMultiple * median, kThresholdFloorRatio * config_.max_correspondence_m));

@@ -10,7 +10,7 @@ void NearPointsFilter::reset(std::vector<Eigen::Vector3d>& points_m, double dist
 
 bool NearPointsFilter::excludes(const Eigen::Vector3d& point_m) {
   NearestPointIndex::Nearest nearest;
-  return index_.nearest(point_m, nearest) && nearest.squared_distance_m2 < squared_distance_m2_;
+  return index_.nearestWithin(point_m, squared_distance_m2_, nearest);
 }
 
 }  // namespace deformable_collision
