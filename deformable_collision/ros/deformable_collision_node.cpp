@@ -279,7 +279,7 @@ void DeformableCollisionNode::addObject(ObjectSlot& slot, ReadCloud& cloud) {
   ROS_INFO("object '%s': rest shape of %zu points from %s, %s", slot.params.object.name.c_str(),
            points.size(), slot.subscriber.getTopic().c_str(), toString(slot.params.object.kind));
   warnIfPorous(slot.params.object.name, points);
-  startRegistration(slot);
+  announceToReader(slot);
 }
 
 void DeformableCollisionNode::warnIfPorous(const std::string& name,

@@ -89,7 +89,7 @@ class DeformableCollisionNode {
   /// whether the object exists.
   bool placeLink(ObjectSlot& slot);
   /// Marks an object as in the scene for the reader; a registered one gets its fitter first.
-  void startRegistration(ObjectSlot& slot);
+  void announceToReader(ObjectSlot& slot);
   /// Takes the reader's registration of a cloud: its fit, and its report for ~stats.
   void takeRegistration(ObjectSlot& slot, ReadCloud& cloud);
   /// Gives each registered object's reader the other objects' points near it, as they are

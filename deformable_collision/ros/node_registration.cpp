@@ -54,7 +54,7 @@ bool DeformableCollisionNode::placeModel(ObjectSlot& slot) {
   for (Eigen::Vector3d& p : placed) p = *pose * p;
   // The file's points are kept until the object exists, so that a failure tries again.
   slot.index = scene_.addObject(params.object, std::move(placed));
-  startRegistration(slot);
+  announceToReader(slot);
   const std::size_t count = slot.model_points.size();
   slot.model_points = {};
   ROS_INFO("object '%s': rest shape of %zu points from %s at the pose of '%s', %s",
@@ -74,7 +74,7 @@ bool DeformableCollisionNode::placeModels() {
   return waiting;
 }
 
-void DeformableCollisionNode::startRegistration(ObjectSlot& slot) {
+void DeformableCollisionNode::announceToReader(ObjectSlot& slot) {
   // The reader registers the clouds on a copy of the object, which must exist before the
   // reader is told that the object does.
   if (slot.params.on_cloud == OnCloud::kRegister)
