@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <string>
 #include <vector>
@@ -194,6 +195,41 @@ TEST(Scene, PointsNearObjectAreThoseWithinTheRegistrationsReach) {
   unfiltered->pointsNearObject(0, near);
   EXPECT_TRUE(near.empty()) << "exclude_near_other_objects: false leaves nothing out";
   EXPECT_THROW(unfiltered->pointsNearObject(2, near), std::out_of_range);
+}
+
+// Clouds no camera should send, between good ones: each way holds or registers alike, and
+// nothing becomes non-finite.
+TEST(RegistrationFitter, AbsurdCloudsGiveTheStatesRegisterCloudGives) {
+  const Points egg = sampleNoisySurface(600, {0.06, 0.05, 0.04}, 0.0, 10);
+  auto registered = eggBesidePlate(egg, DeformationMode::kQuadratic);
+  auto fitted = eggBesidePlate(egg, DeformationMode::kQuadratic);
+  RegistrationFitter fitter = fitted->registrationFitter(1);
+  std::mt19937 random(11);
+  const double nan = std::nan("");
+  const std::vector<Points> clouds = {cloud(egg, 1, random),
+                                      {},
+                                      Points(50, Eigen::Vector3d(nan, 0.0, 0.0)),
+                                      {Eigen::Vector3d(0.06, 0.0, 0.0)},
+                                      Points(50, Eigen::Vector3d(1e300, -1e300, 1e300)),
+                                      Points(50, Eigen::Vector3d(0.06, 0.0, 0.0)),
+                                      cloud(egg, 2, random)};
+  TrackedFit fit;
+  Points near;
+  Points read;
+  for (std::size_t k = 0; k < clouds.size(); ++k) {
+    SCOPED_TRACE("cloud " + std::to_string(k));
+    const RegistrationReport expected = registered->registerCloud(1, clouds[k], std::nullopt);
+    fitted->pointsNearObject(1, near);
+    fitter.setPointsNearObject(near);
+    read = clouds[k];
+    const RegistrationReport report = fitter.fit(read, std::nullopt, fit);
+    expectSameReport(report, expected);
+    if (!report.held) fitted->observeRegistered(1, read, fit, report.mean_residual_m);
+    ASSERT_EQ(fitted->body(1).positions(), registered->body(1).positions());
+    for (const auto& p : fitted->body(1).positions()) ASSERT_TRUE(p.allFinite());
+    fitted->cycle();
+    registered->cycle();
+  }
 }
 
 TEST(Scene, RegisteredFitsAreTakenOnlyByTheRestShapeTheyFit) {
