@@ -6,15 +6,24 @@
 #include "deformable_collision/core/scene/scene.h"
 
 namespace deformable_collision {
+namespace {
+
+/// @throw std::invalid_argument naming `object` unless it is tracked.
+void requireRegistrable(const detail::SceneObject& object) {
+  if (object.config.kind != ObjectKind::kTracked) {
+    throw std::invalid_argument("object '" + object.config.name + "' is " +
+                                toString(object.config.kind) +
+                                ", only tracked objects are registered to clouds");
+  }
+}
+
+}  // namespace
 
 RegistrationReport Scene::registerCloud(std::size_t object,
                                         const std::vector<Eigen::Vector3d>& cloud_m,
                                         const std::optional<Eigen::Vector3d>& viewpoint_m) {
   Object& o = *objects_.at(object);
-  if (o.config.kind != ObjectKind::kTracked) {
-    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
-                                ", only tracked objects are registered to clouds");
-  }
+  requireRegistrable(o);
   if (!o.registration) o.registration.emplace(config_.registration);
   pointsNearObject(object, near_points_);
   o.near_points.reset(near_points_, config_.contact_distance_m);
@@ -30,10 +39,7 @@ RegistrationReport Scene::registerCloud(std::size_t object,
 
 RegistrationFitter Scene::registrationFitter(std::size_t object) const {
   const Object& o = *objects_.at(object);
-  if (o.config.kind != ObjectKind::kTracked) {
-    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
-                                ", only tracked objects are registered to clouds");
-  }
+  requireRegistrable(o);
   return RegistrationFitter(o.body, o.rest_shape, config_.registration, config_.contact_distance_m);
 }
 
