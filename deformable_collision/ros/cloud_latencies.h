@@ -29,6 +29,9 @@ class CloudLatencies {
   void closePeriodIfDue(Clock::time_point now);
   /// The last closed period's summaries (zero before the first).
   void fill(Stats& stats) const;
+  /// Periods closed since start, and the arrival latencies of the last one.
+  std::uint64_t periods() const { return periods_; }
+  const LatencySummary& arrival() const { return arrival_summary_; }
 
  private:
   const Clock::duration period_;

@@ -49,6 +49,7 @@ void CloudReader::receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, st
   auto& awaiting = readers_[index].awaiting_transform;
   ++clouds_received_;
   const auto arrival = Clock::now();
+  countArrival(slot, arrival);
   // Behind older clouds that wait for their transform, in arrival order: a tracked object
   // must not step back, and a sensor whose tf always lags keeps every cloud. A cloud in a
   // frame tf does not know would only take the place of one that can still be placed.
@@ -71,6 +72,19 @@ void CloudReader::receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, st
   if (!processCloud(index, *cloud, arrival, config_.tf_wait_s == 0.0)) {
     awaiting.push_back({cloud, arrival});
   }
+}
+
+void CloudReader::countArrival(ObjectSlot& slot, Clock::time_point arrival) {
+  ++slot.clouds_received;
+  const Clock::rep last = slot.last_arrival.exchange(arrival.time_since_epoch().count());
+  if (last == 0) return;
+  const double interval_s =
+      std::chrono::duration<double>(arrival.time_since_epoch() - Clock::duration(last)).count();
+  const double mean_s = slot.mean_interval_s.load();
+  // A pause of the sensor is not its rate: an interval counts for at most four times the
+  // mean, so a rate that really drops is still learned within a few clouds.
+  slot.mean_interval_s.store(
+      mean_s == 0.0 ? interval_s : 0.9 * mean_s + 0.1 * std::min(interval_s, 4.0 * mean_s));
 }
 
 bool CloudReader::tfFilling() const {
@@ -126,6 +140,7 @@ bool CloudReader::processCloud(std::size_t index, const sensor_msgs::PointCloud2
 void CloudReader::dropCloud(ObjectSlot& slot, ros::console::levels::Level level,
                             const std::string& problem) {
   ++clouds_rejected_;
+  ++slot.clouds_dropped;
   std::lock_guard<std::mutex> lock(report_mutex_);
   ++slot.drops_unreported;
   // Throttled per object, so that one noisy topic cannot hide another one's problems.

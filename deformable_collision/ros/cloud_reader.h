@@ -81,6 +81,8 @@ class CloudReader {
   enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
 
   /// onCloud() but for counting the time it takes.
+  /// Counts a cloud of `slot` that arrived at `arrival` and learns the clouds' rate.
+  static void countArrival(ObjectSlot& slot, Clock::time_point arrival);
   void receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
   /// Adds the time since `start` to busy_ns_.
   void countBusy(Clock::time_point start);

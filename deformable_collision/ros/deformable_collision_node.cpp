@@ -74,6 +74,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
           std::chrono::duration<double>(1.0 / config_.rate_hz))),
       cycle_wait_(kIdleWait),
       outputs_(Clock::now(), cycle_period_),
+      diagnostics_(config_.diagnostics, slots_, outputs_),
       reader_spinner_(1, &reader_queue_) {
   for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
   taken_slots_.reserve(slots_.size());
@@ -106,6 +107,7 @@ void DeformableCollisionNode::connect() {
   cycle_private_handle.setCallbackQueue(&cycle_queue_);
   // Advertised on the cycle's queue, so that the cycle alone counts their subscribers.
   outputs_.advertise(cycle_private_handle);
+  diagnostics_.start(cycle_handle, private_handle_);
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     ObjectSlot& slot = slots_[i];
     named_objects_.push_back({slot.params.object.name, std::nullopt});

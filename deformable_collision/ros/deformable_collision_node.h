@@ -22,6 +22,7 @@
 #include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/counted_publisher.h"
 #include "deformable_collision/ros/node_config.h"
+#include "deformable_collision/ros/node_diagnostics.h"
 #include "deformable_collision/ros/node_outputs.h"
 #include "deformable_collision/ros/object_slot.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
@@ -38,7 +39,7 @@ namespace deformable_collision {
 /// - the cycle (cycle_thread_, serving cycle_queue_) runs the timer, the cycles, the
 ///   services and the outputs' connect and disconnect callbacks (CountedPublisher). It
 ///   alone touches scene_, the cycle members of slots_ (index, poses, model, registration,
-///   the deformed publisher's count), taken_ and outputs_ (NodeOutputs).
+///   the deformed publisher's count), taken_, outputs_ (NodeOutputs) and diagnostics_.
 /// Between them: handoff_ and each slot's near_points (their own mutexes), a registered
 /// slot's fitter (the cycle's until it sets `exists`, then the reader's), the atomics of
 /// slots_, the reader's counters and drop reports (its own mutex), and the wake-up flag. tf_buffer_
@@ -177,6 +178,7 @@ class DeformableCollisionNode {
   /// The services' view of slots_: names point into slots_[i].params, which never moves.
   std::vector<NamedObject> named_objects_;
   NodeOutputs outputs_;
+  NodeDiagnostics diagnostics_;
 
   // Last: they start after everything they use exists and stop before it goes.
   ros::AsyncSpinner reader_spinner_;

@@ -282,6 +282,19 @@ void readRegistration(const XmlRpcValue& block, RegistrationConfig& registration
   read.finish();
 }
 
+void readDiagnostics(const XmlRpcValue& block, DiagnosticsParams& diagnostics) {
+  ParamReader read(block, "diagnostics");
+  diagnostics.period_s = read.number("period_s", diagnostics.period_s, 0.0, 3600.0, true);
+  diagnostics.latency_warn_ms =
+      read.number("latency_warn_ms", diagnostics.latency_warn_ms, 0.0, 1e7, true);
+  diagnostics.latency_error_ms =
+      read.number("latency_error_ms", diagnostics.latency_error_ms, 0.0, 1e7, true);
+  if (diagnostics.latency_error_ms < diagnostics.latency_warn_ms) {
+    ParamReader::fail(read.name("latency_error_ms"), "is below latency_warn_ms");
+  }
+  read.finish();
+}
+
 void readShapeMatching(ParamReader& read, ShapeMatchingConfig& shape) {
   shape.clusters = static_cast<int>(read.integer("clusters", shape.clusters, 1, 4096));
   shape.stiffness = read.number("stiffness", shape.stiffness, 0.0, 1.0);
@@ -321,6 +334,7 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
                       "= '" + on_cloud + "' must be " + enumNameList(kOnCloudNames));
   }
   params.on_cloud = *parsed_on_cloud;
+  params.expected_rate_hz = read.number("expected_rate_hz", 0.0, 0.0, 1e4);
   const ModeParam mode = readMode(read);
 
   ObjectConfig& object = params.object;
@@ -556,6 +570,9 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
     markers_read.finish();
   }
 
+  if (const XmlRpcValue* diagnostics = read.find("diagnostics")) {
+    readDiagnostics(*diagnostics, config.diagnostics);
+  }
   readObjects(read, config);
   if (const XmlRpcValue* robot = read.find("robot")) readRobot(*robot, config);
   checkCloudsStartCycles(config);

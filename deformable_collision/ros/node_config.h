@@ -52,6 +52,8 @@ struct ObjectParams {
   /// A link of the `robot` block: its URDF name. Its collision geometry's surface, in its
   /// frame (follow_frame), is the rest shape; it has no topic.
   std::string robot_link;
+  /// The rate its clouds are expected at, for /diagnostics; 0: learned from the clouds.
+  double expected_rate_hz = 0.0;
   /// Name, kind and shape matching. The kind follows from `dynamic`, `follow_frame` and
   /// `on_cloud`: dynamic; kinematic (follows a frame); tracked (on_cloud track or
   /// register); or static.
@@ -66,6 +68,15 @@ struct RobotParams {
   /// Every point of a link's surface lies within this of a sample: contact_distance_m unless
   /// set, so that whatever touches the surface has a sample within the contact distance.
   double point_spacing_m = 0.0;
+};
+
+/// The `diagnostics` block: how often /diagnostics is published (ROS time), and the 99th
+/// percentile of the cloud-to-contacts latency above which the cycle's status warns and is
+/// an error.
+struct DiagnosticsParams {
+  double period_s = 1.0;
+  double latency_warn_ms = 100.0;
+  double latency_error_ms = 1000.0;
 };
 
 /// Every parameter of the node, in SI units, validated.
@@ -93,6 +104,7 @@ struct NodeConfig {
   bool markers_colliding_only = false;
   /// ~contact_markers: metres of a force's segment per newton.
   double force_marker_scale_m_per_n = 0.01;
+  DiagnosticsParams diagnostics;
   /// dt_s, gravity_mps2, level (or `auto` and cycle_budget_ms), contact_distance_m,
   /// friction, tree, register.
   SceneConfig scene;

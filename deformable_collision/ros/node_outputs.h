@@ -62,6 +62,10 @@ class NodeOutputs {
   /// ~hierarchy: the spheres of the last cycle's level.
   void publishMarkers(Scene& scene, bool colliding_only, const std_msgs::Header& header);
   CloudLatencies& latencies() { return latencies_; }
+  const CloudLatencies& latencies() const { return latencies_; }
+  /// Cycles since start, and of them those longer than the cycle period.
+  std::uint64_t cycles() const { return stats_message_.cycles; }
+  std::uint64_t overruns() const { return stats_message_.overruns; }
   /// ~stats of the cycle: counts the cycle (and an overrun) whether or not anyone listens;
   /// `fill_registrations(Stats&)` adds the registered objects' figures.
   template <typename FillRegistrations>

@@ -37,6 +37,13 @@ struct ObjectSlot {
   /// drops since.
   std::optional<Clock::time_point> last_report;
   std::size_t drops_unreported = 0;
+  /// For the diagnostics: the clouds received and dropped since start, the arrival of the
+  /// last (Clock ticks since its epoch; 0: none yet) and the mean interval between arrivals.
+  /// The reader writes them (a drop may come from the cycle too).
+  std::atomic<std::uint64_t> clouds_received{0};
+  std::atomic<std::uint64_t> clouds_dropped{0};
+  std::atomic<Clock::rep> last_arrival{0};
+  std::atomic<double> mean_interval_s{0.0};
   // The cycle's.
   std::optional<std::size_t> index;            ///< In the scene, once a cloud set its rest shape.
   std::optional<Eigen::Isometry3d> last_pose;  ///< Kinematic objects.

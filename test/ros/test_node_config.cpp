@@ -36,6 +36,9 @@ XmlRpcValue validParams() {
   params["markers"]["colliding_only"] = true;
   params["markers"]["force_scale_m_per_n"] = 0.05;
   params["contact_forces"] = false;
+  params["diagnostics"]["period_s"] = 2.0;
+  params["diagnostics"]["latency_warn_ms"] = 30.0;
+  params["diagnostics"]["latency_error_ms"] = 300.0;
   XmlRpcValue& objects = params["objects"];
   objects[0] = object("floor", "/floor/points");
   objects[0]["dynamic"] = false;
@@ -43,6 +46,7 @@ XmlRpcValue validParams() {
   objects[1]["mode"] = "quadratic";
   objects[1]["clusters"] = 3;
   objects[1]["stiffness"] = 0.8;
+  objects[1]["expected_rate_hz"] = 15.0;
   objects[1]["beta"] = 0.4;
   objects[1]["mass_kg"] = 0.25;
   objects[2] = object("jaw", "/jaw/points");
@@ -77,7 +81,12 @@ TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
   EXPECT_TRUE(config.markers_colliding_only);
   EXPECT_DOUBLE_EQ(config.force_marker_scale_m_per_n, 0.05);
   EXPECT_FALSE(config.scene.contact_forces);
+  EXPECT_DOUBLE_EQ(config.diagnostics.period_s, 2.0);
+  EXPECT_DOUBLE_EQ(config.diagnostics.latency_warn_ms, 30.0);
+  EXPECT_DOUBLE_EQ(config.diagnostics.latency_error_ms, 300.0);
   ASSERT_EQ(config.objects.size(), 4u);
+  EXPECT_DOUBLE_EQ(config.objects[0].expected_rate_hz, 0.0);
+  EXPECT_DOUBLE_EQ(config.objects[1].expected_rate_hz, 15.0);
 
   EXPECT_EQ(config.objects[0].object.kind, ObjectKind::kStatic);
   const ObjectParams& fruit = config.objects[1];
@@ -171,6 +180,10 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"NegativeContactStiffness", [](XmlRpcValue& p) { p["objects"][3]["contact_stiffness_n_per_m"] = -5.0; }, "objects[3].contact_stiffness_n_per_m = -5"},
         BadParamCase{"ContactStiffnessOfDynamic", [](XmlRpcValue& p) { p["objects"][1]["contact_stiffness_n_per_m"] = 100.0; }, "objects[1].contact_stiffness_n_per_m is read only by tracked objects (on_cloud track or register), not a dynamic one"},
         BadParamCase{"ContactStiffnessOfKinematic", [](XmlRpcValue& p) { p["objects"][2]["contact_stiffness_n_per_m"] = 100.0; }, "objects[2].contact_stiffness_n_per_m is read only by tracked objects"},
+        BadParamCase{"ZeroDiagnosticsPeriod", [](XmlRpcValue& p) { p["diagnostics"]["period_s"] = 0.0; }, "diagnostics.period_s = 0 must be in (0, 3600]"},
+        BadParamCase{"ErrorBelowWarning", [](XmlRpcValue& p) { p["diagnostics"]["latency_error_ms"] = 10.0; }, "diagnostics.latency_error_ms is below latency_warn_ms"},
+        BadParamCase{"MisspeltDiagnostics", [](XmlRpcValue& p) { p["diagnostics"]["period"] = 1.0; }, "diagnostics.period is not a known"},
+        BadParamCase{"NegativeExpectedRate", [](XmlRpcValue& p) { p["objects"][1]["expected_rate_hz"] = -1.0; }, "objects[1].expected_rate_hz = -1"},
         BadParamCase{"MisspeltMarkers", [](XmlRpcValue& p) { p["markers"]["coliding_only"] = true; }, "markers.coliding_only"},
         BadParamCase{"NoObjects", [](XmlRpcValue& p) {
           XmlRpcValue none; none.setSize(0); p["objects"] = none; }, "objects must be a non-empty list"},
