@@ -18,6 +18,12 @@ void CloudLatencies::closePeriodIfDue(Clock::time_point now) {
   period_start_ = now;
 }
 
+void CloudLatencies::restart(Clock::time_point now) {
+  arrival_.clear();
+  stamp_.clear();
+  period_start_ = now;
+}
+
 void CloudLatencies::fill(Stats& stats) const {
   stats.latency_periods = periods_;
   stats.latency_period_s = period_s_;

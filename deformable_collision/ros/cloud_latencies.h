@@ -27,6 +27,9 @@ class CloudLatencies {
            const ros::Time& published_ros);
   /// Summarises the period and starts the next if it has lasted `period` at `now`.
   void closePeriodIfDue(Clock::time_point now);
+  /// Drops the open period's latencies and starts it again at `now`: those measured before
+  /// ROS time went back (a looped bag) compare stamps of two different times.
+  void restart(Clock::time_point now);
   /// The last closed period's summaries (zero before the first).
   void fill(Stats& stats) const;
   /// Periods closed since start, and the arrival latencies of the last one.

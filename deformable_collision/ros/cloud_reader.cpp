@@ -49,6 +49,8 @@ void CloudReader::receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, st
   auto& awaiting = readers_[index].awaiting_transform;
   ++clouds_received_;
   const auto arrival = Clock::now();
+  const ros::Time arrival_ros = ros::Time::now();
+  watchRosTime(arrival_ros);
   countArrival(slot, arrival);
   // Behind older clouds that wait for their transform, in arrival order: a tracked object
   // must not step back, and a sensor whose tf always lags keeps every cloud. A cloud in a
@@ -65,12 +67,12 @@ void CloudReader::receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, st
           slot, ros::console::levels::Warn,
           "more than " + std::to_string(kMaxAwaitingClouds) + " clouds wait for their transform");
     }
-    awaiting.push_back({cloud, arrival});
-    retryAwaitingClouds(index, arrival);
+    awaiting.push_back({cloud, arrival, arrival_ros});
+    retryAwaitingClouds(index, arrival_ros);
     return;
   }
   if (!processCloud(index, *cloud, arrival, config_.tf_wait_s == 0.0)) {
-    awaiting.push_back({cloud, arrival});
+    awaiting.push_back({cloud, arrival, arrival_ros});
   }
 }
 
@@ -89,9 +91,27 @@ void CloudReader::countArrival(ObjectSlot& slot, Clock::time_point arrival) {
 
 bool CloudReader::tfFilling() const {
   // The longer of the two: a tf_wait_s above the minimum says that the transforms of this
-  // setup may lag that long, and at start-up that includes the first one naming a frame.
+  // setup may lag that long, and at start-up that includes the first one naming a frame. In
+  // ROS time too, from the first time seen or the last jump back, after which tf starts
+  // empty again: a bag may start long after the node.
   const double fill_s = std::max(config_.tf_wait_s, kTfFillMinimumS);
-  return std::chrono::duration<double>(Clock::now() - started_).count() < fill_s;
+  return std::chrono::duration<double>(Clock::now() - started_).count() < fill_s ||
+         (ros::Time::now() - fill_started_ros_).toSec() < fill_s;
+}
+
+bool CloudReader::tfFromBeforeJump(const std::string& target_frame,
+                                   const std::string& source_frame) {
+  if (!tf_from_before_jump_) return false;
+  // tf's listener drops its transforms only when the first of the new time comes: until
+  // then, the newest it has is from the time before the jump, ahead of the clock.
+  try {
+    const ros::Time newest =
+        tf_buffer_.lookupTransform(target_frame, source_frame, ros::Time(0)).header.stamp;
+    if (newest > ros::Time::now()) return true;
+  } catch (const tf2::TransformException&) {
+  }
+  tf_from_before_jump_ = false;
+  return false;
 }
 
 const std::string& CloudReader::targetFrame(const ObjectSlot& slot) const {
@@ -109,17 +129,35 @@ std::string CloudReader::unknownFrameProblem(const ObjectSlot& slot,
 }
 
 void CloudReader::retryAwaitingClouds() {
-  const auto now = Clock::now();
+  const auto start = Clock::now();
+  const ros::Time now = ros::Time::now();
+  watchRosTime(now);
   for (std::size_t index = 0; index < slots_.size(); ++index) retryAwaitingClouds(index, now);
-  countBusy(now);
+  countBusy(start);
 }
 
-void CloudReader::retryAwaitingClouds(std::size_t index, Clock::time_point now) {
+void CloudReader::watchRosTime(const ros::Time& now) {
+  const bool went_back = now < latest_ros_;
+  if (latest_ros_.isZero() || went_back) fill_started_ros_ = now;
+  latest_ros_ = now;
+  if (!went_back) return;
+  tf_from_before_jump_ = true;
+  for (std::size_t index = 0; index < slots_.size(); ++index) {
+    auto& awaiting = readers_[index].awaiting_transform;
+    for (std::size_t k = 0; k < awaiting.size(); ++k) {
+      dropCloud(slots_[index], ros::console::levels::Warn,
+                "ROS time went back while it waited for its transform (a looped bag?)");
+    }
+    awaiting.clear();
+  }
+}
+
+void CloudReader::retryAwaitingClouds(std::size_t index, const ros::Time& now) {
   auto& awaiting = readers_[index].awaiting_transform;
   while (!awaiting.empty()) {
     const AwaitingCloud& oldest = awaiting.front();
-    const bool last_try =
-        std::chrono::duration<double>(now - oldest.arrival).count() >= config_.tf_wait_s;
+    // ROS time, so that a bag played slower than real time gives its tf as long as live.
+    const bool last_try = (now - oldest.arrival_ros).toSec() >= config_.tf_wait_s;
     // tf arrives in time order: while the oldest cannot be placed, the newer wait too.
     if (!processCloud(index, *oldest.cloud, oldest.arrival, last_try)) return;
     awaiting.pop_front();
@@ -321,7 +359,7 @@ void CloudReader::registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadClou
 CloudReader::TransformOutcome CloudReader::transformPoints(const ObjectSlot& slot,
                                                            const sensor_msgs::PointCloud2& cloud,
                                                            bool last_try, ReadCloud& read,
-                                                           std::string& problem) const {
+                                                           std::string& problem) {
   const std::string& target_frame = targetFrame(slot);
   read.viewpoint.reset();
   if (cloud.header.frame_id.empty()) {
@@ -329,6 +367,8 @@ CloudReader::TransformOutcome CloudReader::transformPoints(const ObjectSlot& slo
     return TransformOutcome::kRefused;
   }
   if (cloud.header.frame_id == target_frame) return TransformOutcome::kDone;
+  if (!last_try && tfFromBeforeJump(target_frame, cloud.header.frame_id))
+    return TransformOutcome::kNotYet;
   const CloudTransformLookup lookup =
       lookUpCloudTransform(tf_buffer_, target_frame, cloud.header.frame_id, cloud.header.stamp);
   if (lookup.status == CloudTransformStatus::kUnknownFrame) {

@@ -27,7 +27,8 @@ namespace deformable_collision {
 /// transforms it by tf into the object's frame and checks it, makes new objects
 /// (Scene::prepareObject), fits tracked ones to their clouds (TrackedFitter) and registers
 /// registered ones (RegistrationFitter), then hands each to the cycle (CloudHandoff). A
-/// cloud whose transform has not come waits, in arrival order, up to tf_wait_s. It alone touches
+/// cloud whose transform has not come waits, in arrival order, up to tf_wait_s of ROS time
+/// (a bag's clock when it plays with --clock). It alone touches
 /// its per-object state; the drop reports (either thread) are guarded by a mutex of its own.
 class CloudReader {
  public:
@@ -43,7 +44,7 @@ class CloudReader {
   /// A cloud of object `slot` arrived (the subscription's callback).
   void onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t slot);
   /// Tries the clouds that wait for their transform, in order; drops those that waited
-  /// too long (the retry timer's callback).
+  /// too long, and all of them when ROS time went back (the retry timer's callback).
   void retryAwaitingClouds();
   /// Counts a dropped cloud and says why, at most once per 5 s per object. Either thread.
   void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
@@ -59,6 +60,7 @@ class CloudReader {
   struct AwaitingCloud {
     sensor_msgs::PointCloud2ConstPtr cloud;
     Clock::time_point arrival;
+    ros::Time arrival_ros;  ///< What tf_wait_s is measured from.
   };
   /// The reader's state of one object.
   struct ObjectReader {
@@ -88,11 +90,17 @@ class CloudReader {
   void countBusy(Clock::time_point start);
   /// Whether tf may still be learning its frames, so that an unknown frame may yet come.
   bool tfFilling() const;
+  /// Whether, since ROS time went back, tf still holds the transforms of the time before
+  /// between these frames; once it does not, false from then on.
+  bool tfFromBeforeJump(const std::string& target_frame, const std::string& source_frame);
   /// The frame a cloud of this object is placed in: its follow_frame or the fixed frame.
   const std::string& targetFrame(const ObjectSlot& slot) const;
   /// Why a cloud cannot ever be placed because tf knows no such frame; empty if it can be.
   std::string unknownFrameProblem(const ObjectSlot& slot, const std::string& frame) const;
-  void retryAwaitingClouds(std::size_t slot, Clock::time_point now);
+  void retryAwaitingClouds(std::size_t slot, const ros::Time& now);
+  /// Notes ROS time `now`; if it went back (a looped bag), the waiting clouds, whose
+  /// transforms belonged to the time before, are dropped.
+  void watchRosTime(const ros::Time& now);
   /// False if the cloud waits for its transform.
   bool processCloud(std::size_t slot, const sensor_msgs::PointCloud2& cloud,
                     Clock::time_point arrival, bool last_try);
@@ -127,7 +135,7 @@ class CloudReader {
   /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
   /// it never will (no frame, an unknown frame once tf has filled, not finite).
   TransformOutcome transformPoints(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
-                                   bool last_try, ReadCloud& read, std::string& problem) const;
+                                   bool last_try, ReadCloud& read, std::string& problem);
   /// Hands a read cloud to the cycle, waking it if the cloud may start one.
   void handOver(std::size_t slot, ReadCloud& read);
 
@@ -138,6 +146,9 @@ class CloudReader {
   const tf2_ros::Buffer& tf_buffer_;
   const std::function<void()> wake_cycle_;
   const Clock::time_point started_;
+  ros::Time latest_ros_;              ///< The latest ROS time seen, to notice a jump back.
+  ros::Time fill_started_ros_;        ///< The first ROS time seen, or the last jump back's.
+  bool tf_from_before_jump_ = false;  ///< See tfFromBeforeJump().
   std::vector<ObjectReader> readers_;
   std::mutex report_mutex_;
   std::atomic<std::uint64_t> clouds_received_{0};

@@ -125,9 +125,9 @@ void DeformableCollisionNode::connect() {
         boost::bind(&CloudReader::onCloud, &reader_, boost::placeholders::_1, i),
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
   }
-  retry_timer_ = reader_handle.createWallTimer(
-      ros::WallDuration(1.0 / config_.rate_hz),
-      [this](const ros::WallTimerEvent&) { reader_.retryAwaitingClouds(); });
+  retry_timer_ =
+      reader_handle.createTimer(ros::Duration(1.0 / config_.rate_hz),
+                                [this](const ros::TimerEvent&) { reader_.retryAwaitingClouds(); });
   set_level_service_ = cycle_private_handle.advertiseService(
       "set_level", &DeformableCollisionNode::onSetLevel, this);
   get_contacts_service_ = cycle_private_handle.advertiseService(
@@ -298,14 +298,19 @@ void DeformableCollisionNode::warnIfPorous(const std::string& name,
   }
 }
 
-void DeformableCollisionNode::followFrames() {
+void DeformableCollisionNode::followFrames(const ros::Time& stamp) {
   for (ObjectSlot& slot : slots_) {
     if (!slot.index || slot.params.object.kind != ObjectKind::kKinematic) continue;
+    // At the clouds' stamp, which the outputs carry, so that contacts are those of one
+    // instant (a bag replayed at any rate gives the same); the latest if tf is not there yet.
+    const ros::Time at = !stamp.isZero() && tf_buffer_.canTransform(config_.fixed_frame,
+                                                                    slot.params.follow_frame, stamp)
+                             ? stamp
+                             : ros::Time(0);
     std::optional<Eigen::Isometry3d> pose;
     try {
       pose = toIsometry(
-          tf_buffer_.lookupTransform(config_.fixed_frame, slot.params.follow_frame, ros::Time(0))
-              .transform);
+          tf_buffer_.lookupTransform(config_.fixed_frame, slot.params.follow_frame, at).transform);
     } catch (const tf2::TransformException& e) {
       ROS_WARN_THROTTLE(kThrottlePeriodS, "object '%s' keeps its last pose: %s",
                         slot.params.object.name.c_str(), e.what());
@@ -316,6 +321,18 @@ void DeformableCollisionNode::followFrames() {
     scene_.setPose(*slot.index, *pose);
     slot.last_pose = *pose;
   }
+}
+
+void DeformableCollisionNode::watchRosTime(const ros::Time& now) {
+  if (now < latest_ros_) {
+    ROS_WARN(
+        "ROS time went back %.3f s (a looped bag?): the steps from stamps and the latency "
+        "windows start again; tf clears its own buffer",
+        (latest_ros_ - now).toSec());
+    last_cycle_stamp_ = ros::Time();
+    outputs_.latencies().restart(Clock::now());
+  }
+  latest_ros_ = now;
 }
 
 void DeformableCollisionNode::runCycle() {
@@ -329,15 +346,17 @@ void DeformableCollisionNode::runCycle() {
   std_msgs::Header header;
   header.stamp = ros::Time::now();
   header.frame_id = config_.fixed_frame;
+  watchRosTime(header.stamp);
+  ros::Time clouds_stamp;
   if (config_.cycle_on == CycleOn::kClouds) {
     // The outputs of a cycle that clouds started carry those clouds' time.
-    const ros::Time stamp = newestAppliedStamp();
-    if (!stamp.isZero()) {
-      if (config_.dt_from_stamps) stepToStamp(stamp);
-      header.stamp = stamp;
+    clouds_stamp = newestAppliedStamp();
+    if (!clouds_stamp.isZero()) {
+      if (config_.dt_from_stamps) stepToStamp(clouds_stamp);
+      header.stamp = clouds_stamp;
     }
   }
-  followFrames();
+  followFrames(clouds_stamp);
   scene_.cycle();
   shareNearPoints();
   times.cycled = Clock::now();

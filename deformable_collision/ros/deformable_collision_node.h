@@ -99,7 +99,11 @@ class DeformableCollisionNode {
   /// Says that a registration held the model, at most once per 5 s per object.
   void reportHeld(ObjectSlot& slot);
   void fillRegistrationStats(Stats& stats) const;
-  void followFrames();
+  /// Poses the kinematic objects from tf at `stamp` (zero: the latest).
+  void followFrames(const ros::Time& stamp);
+  /// Notes ROS time `now`; if it went back (a looped bag), what was measured in the time
+  /// before starts again, with one log line.
+  void watchRosTime(const ros::Time& now);
   void cycleLoop();
   /// cycle_on clouds: a cycle if a cloud starts one and rate_hz allows it, else the clouds
   /// read meanwhile applied already; sets the wait until the next check.
@@ -143,7 +147,7 @@ class DeformableCollisionNode {
   ros::ServiceServer set_level_service_;
   ros::ServiceServer get_contacts_service_;
   ros::Timer timer_;
-  ros::WallTimer retry_timer_;
+  ros::Timer retry_timer_;
 
   /// Set by the reader when it queues wake_ on cycle_queue_, cleared by the cycle before it
   /// looks at handoff_: one wake-up waits at most, and none is lost.
@@ -171,6 +175,7 @@ class DeformableCollisionNode {
   /// is none.
   std::optional<Clock::time_point> last_early_application_;
   ros::Time last_cycle_stamp_;
+  ros::Time latest_ros_;  ///< The latest ROS time a cycle saw, to notice a jump back.
   bool models_waiting_ = false;
   const Clock::duration cycle_period_;  ///< 1 / rate_hz
   Clock::duration cycle_wait_;

@@ -20,6 +20,8 @@ class LatencyWindow {
   void add(double latency_ms) { samples_ms_.push_back(latency_ms); }
   /// The summary of the period's latencies, which are then dropped for the next period.
   LatencySummary close();
+  /// Drops the period's latencies unsummarised.
+  void clear() { samples_ms_.clear(); }
 
  private:
   std::vector<double> samples_ms_;

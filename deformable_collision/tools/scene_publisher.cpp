@@ -12,22 +12,19 @@
 #include <sys/socket.h>
 #include <tf2_ros/transform_broadcaster.h>
 
-#include <boost/make_shared.hpp>
 #include <cmath>
 #include <cstdlib>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include "deformable_collision/ros/cloud_transform.h"
-#include "deformable_collision/ros/point_cloud_conversion.h"
 #include "deformable_collision/scenes/demo_scenes.h"
 #include "deformable_collision/tools/camera_gripper_publisher.h"
+#include "deformable_collision/tools/scene_messages.h"
 
 namespace {
 
 using deformable_collision::DemoScene;
-using deformable_collision::toTransformStamped;
 
 struct PublisherParams {
   std::string scene_name;
@@ -116,24 +113,17 @@ void lengthenXmlRpcBacklog() {
 /// cloud.
 void publishScene(const PublisherParams& params, const deformable_collision::Scene& scene,
                   const ros::Time& now, double time_s, std::vector<ros::Publisher>& publishers,
-                  tf2_ros::TransformBroadcaster& broadcaster) {
-  for (std::size_t i = 0; i < scene.objectCount(); ++i) {
-    const auto& object = scene.objectConfig(i);
-    const bool kinematic = object.kind == deformable_collision::ObjectKind::kKinematic;
-    if (kinematic) {
-      // A kinematic object is its rest shape in its own frame, moved by tf.
-      const auto pose =
-          deformable_collision::demoKinematicPose(params.scene_kind, object.name, time_s);
-      broadcaster.sendTransform(toTransformStamped(pose.value_or(Eigen::Isometry3d::Identity()),
-                                                   now, params.fixed_frame, object.name));
-    }
-    if (publishers[i].getNumSubscribers() == 0) continue;
-    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
-    cloud->header.stamp = now;
-    cloud->header.frame_id = kinematic ? object.name : params.fixed_frame;
-    deformable_collision::writeCloudPoints(
-        kinematic ? scene.body(i).restPositions() : scene.body(i).positions(), *cloud);
-    publishers[i].publish(cloud);
+                  tf2_ros::TransformBroadcaster& broadcaster,
+                  deformable_collision::SceneMessages& messages) {
+  std::vector<bool> wanted;
+  for (const auto& publisher : publishers) wanted.push_back(publisher.getNumSubscribers() > 0);
+  deformable_collision::SceneFrames frames;
+  frames.fixed_frame = frames.cloud_frame = params.fixed_frame;
+  deformable_collision::makeSceneMessages(params.scene_kind, scene, time_s, now, frames, wanted,
+                                          messages);
+  broadcaster.sendTransform(messages.frames.transforms);
+  for (std::size_t i = 0; i < publishers.size(); ++i) {
+    if (messages.clouds[i]) publishers[i].publish(messages.clouds[i]);
   }
 }
 
@@ -175,6 +165,7 @@ int main(int argc, char** argv) {
         scene->objectConfig(i).name + "/points", 2));
   }
   tf2_ros::TransformBroadcaster broadcaster;
+  deformable_collision::SceneMessages messages;
   ROS_INFO("scene_publisher: scene '%s' with %zu objects at %.1f Hz%s, settled for %d cycles",
            params->scene_name.c_str(), scene->objectCount(), params->rate_hz,
            params->simulate ? ", simulated" : "", settle_cycles);
@@ -188,7 +179,7 @@ int main(int argc, char** argv) {
       deformable_collision::driveDemoScene(params->scene_kind, *scene, time_s);
       scene->cycle();
     }
-    publishScene(*params, *scene, now, time_s, publishers, broadcaster);
+    publishScene(*params, *scene, now, time_s, publishers, broadcaster, messages);
     ros::spinOnce();
     rate.sleep();
   }

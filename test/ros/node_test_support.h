@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 #include <nodelet/NodeletLoad.h>
 #include <ros/ros.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <xmlrpcpp/XmlRpcValue.h>
 
 #include <functional>
@@ -64,6 +68,37 @@ inline bool loadNodelet(const std::string& manager, const std::string& name,
   EXPECT_TRUE(ros::service::call(manager + "/load_nodelet", load));
   return load.response.success;
 }
+
+/// A child process, stopped by its pid (SIGTERM, then waited for) when it goes out of scope.
+class ChildProcess {
+ public:
+  explicit ChildProcess(std::vector<std::string> argv) {
+    std::vector<char*> args;
+    for (auto& a : argv) args.push_back(a.data());
+    args.push_back(nullptr);
+    if (posix_spawn(&pid_, args[0], nullptr, nullptr, args.data(), environ) != 0) pid_ = -1;
+  }
+  ~ChildProcess() { stop(SIGTERM); }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+
+  bool running() const { return pid_ > 0; }
+  void stop(int signal) {
+    if (pid_ <= 0) return;
+    kill(pid_, signal);
+    waitpid(pid_, nullptr, 0);
+    pid_ = -1;
+  }
+  /// Whether it has ended by itself; its exit status is then `status`.
+  bool ended(int& status) {
+    if (pid_ <= 0 || waitpid(pid_, &status, WNOHANG) != pid_) return false;
+    pid_ = -1;
+    return true;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
 
 }  // namespace test
 }  // namespace deformable_collision

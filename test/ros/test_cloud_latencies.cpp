@@ -46,5 +46,26 @@ TEST(CloudLatencies, SummarisesEachClosedPeriodForStats) {
   EXPECT_EQ(stats.arrival_latency_max_ms, 0.0);
 }
 
+TEST(CloudLatencies, ARestartDropsTheOpenPeriodAndStartsItAgain) {
+  const Clock::time_point start{};
+  CloudLatencies latencies(start, milliseconds(1000));
+  // A cloud of the end of a bag, its contacts published after the clock went back.
+  const ros::Time published_ros(100.0);
+  latencies.add(start + milliseconds(8), ros::Time(130.0), start + milliseconds(10), published_ros);
+  latencies.restart(start + milliseconds(900));
+  latencies.add(start + milliseconds(1000), published_ros - ros::Duration(0.005),
+                start + milliseconds(1001), published_ros);
+  latencies.closePeriodIfDue(start + milliseconds(1899));
+  Stats stats;
+  latencies.fill(stats);
+  EXPECT_EQ(stats.latency_periods, 0u) << "the period restarted at 900 ms";
+  latencies.closePeriodIfDue(start + milliseconds(1900));
+  latencies.fill(stats);
+  EXPECT_EQ(stats.latency_periods, 1u);
+  EXPECT_DOUBLE_EQ(stats.latency_period_s, 1.0);
+  EXPECT_EQ(stats.latency_clouds, 1u) << "the cloud before the restart is not counted";
+  EXPECT_NEAR(stats.stamp_latency_max_ms, 5.0, 1e-6);
+}
+
 }  // namespace
 }  // namespace deformable_collision

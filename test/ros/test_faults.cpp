@@ -8,11 +8,7 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Log.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <tf2_msgs/TFMessage.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -50,31 +46,6 @@ sensor_msgs::PointCloud2 doubleCloudOf(const Points& points, const std::string& 
   }
   return cloud;
 }
-
-/// A child process, stopped by its pid (SIGTERM, then waited for) when it goes out of scope.
-class ChildProcess {
- public:
-  explicit ChildProcess(std::vector<std::string> argv) {
-    std::vector<char*> args;
-    for (auto& a : argv) args.push_back(a.data());
-    args.push_back(nullptr);
-    if (posix_spawn(&pid_, args[0], nullptr, nullptr, args.data(), environ) != 0) pid_ = -1;
-  }
-  ~ChildProcess() { stop(SIGTERM); }
-  ChildProcess(const ChildProcess&) = delete;
-  ChildProcess& operator=(const ChildProcess&) = delete;
-
-  bool running() const { return pid_ > 0; }
-  void stop(int signal) {
-    if (pid_ <= 0) return;
-    kill(pid_, signal);
-    waitpid(pid_, nullptr, 0);
-    pid_ = -1;
-  }
-
- private:
-  pid_t pid_ = -1;
-};
 
 /// The fault cases' client, which also reads what the node logs (/rosout).
 class FaultsTest : public FaultTestFixture {
