@@ -20,9 +20,9 @@
 #include <vector>
 
 #include "bench/bench_common.h"
+#include "bench/s1_bodies.h"
 #include "bench/s1_methods.h"
 #include "deformable_collision/core/query/collision_query.h"
-#include "deformable_collision/scenes/shapes.h"
 
 namespace dc = deformable_collision;
 namespace db = deformable_collision::bench;
@@ -111,19 +111,6 @@ struct Totals {
   std::size_t updated = 0;
   std::size_t pairs = 0;
 };
-
-std::vector<Eigen::Vector3d> shifted(std::vector<Eigen::Vector3d> points,
-                                     const Eigen::Vector3d& by) {
-  for (auto& p : points) p += by;
-  return points;
-}
-
-/// Bends a ball about its centre line x = center_x, so that shape matching has work to do.
-void bend(dc::ShapeMatchingBody& body, double center_x) {
-  auto bent = body.restPositions();
-  for (auto& p : bent) p.z() += 0.05 * (p.y() * p.y() - (p.x() - center_x) * (p.x() - center_x));
-  body.setPositions(bent);
-}
 
 /// Full refit's place in makeMethods: the ratio column's denominator.
 constexpr std::size_t kFullRefit = 2;
@@ -214,16 +201,10 @@ int main(int argc, char** argv) {
   const double contact_distance_m = argc > 4 ? std::atof(argv[4]) : 0.005;
   const std::size_t each = points / 2;
 
-  dc::ShapeMatchingConfig config;
-  config.mode = dc::DeformationMode::kQuadratic;
-  config.clusters = 4;
-  config.stiffness = 0.3;
   // Two balls of radius 0.5 m pressed 2 cm into each other, both released from a bend.
-  dc::ShapeMatchingBody a(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 1), config);
-  dc::ShapeMatchingBody b(shifted(dc::sampleEllipsoid(each, {0.5, 0.5, 0.5}, 2), {0.98, 0, 0}),
-                          config);
-  bend(a, 0.0);
-  bend(b, 0.98);
+  db::S1Bodies bodies = db::makeS1Bodies(each, 0.98);
+  dc::ShapeMatchingBody& a = bodies.a;
+  dc::ShapeMatchingBody& b = bodies.b;
 
   std::vector<std::unique_ptr<db::S1Method>> methods = makeMethods(a, b, contact_distance_m);
   std::vector<Totals> totals(methods.size());

@@ -3,8 +3,8 @@
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv,
 s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv, registration.txt,
-registration_zoo*.csv, registered_objects.csv and add_object.csv there; writes s1.md, s2.md,
-s3.md, forces.md, memory.md, registration.md, registration_zoo.md, registered_objects.md,
+registration_zoo*.csv, registered_objects.csv, add_object.csv and distance.csv there; writes s1.md, s2.md,
+s3.md, forces.md, memory.md, registration.md, registration_zoo.md, registered_objects.md, distance.md,
 add_object.md, summary.md (headline figures and the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
 registration_error_vs_time.png, registration_zoo_error_vs_time.png,
 add_object_time_vs_points.png. When RESULTS_DIR is the package's bench/results, it also
@@ -669,6 +669,29 @@ def registered_objects_report(results, rows):
     write(results, "registered_objects.md", text)
 
 
+def distance_report(results):
+    """distance.md: ~get_distance's query against FCL's distance(); False if not run."""
+    path = os.path.join(results, "distance.csv")
+    if not os.path.exists(path):
+        return False
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    text = "# Distance beyond contact\n\n"
+    text += ("`bench_distance`: S1's two quadratic balls held 2 cm apart and deforming, 20 steps; "
+             "per step the closest points of the two clouds by our hierarchy to the leaves "
+             "(exact), three levels above them (a lower bound and its error bound), and FCL's "
+             "`distance()` on a `BVHModel<OBBRSS>` of each cloud refitted each step (a degenerate "
+             "triangle per point: FCL's distance takes only triangle models). The run fails "
+             "unless ours and FCL's distances agree within 1e-9 m. Means per query.\n\n")
+    text += table(["points", "method", "ms per query", "of it refit", "distance m",
+                   "error bound m", "node pairs"],
+                  [(points_label(int(r["points"])), r["method"], f"{float(r['ms_per_query']):.4f}",
+                    f"{float(r['refit_ms']):.4f}", f"{float(r['distance_m']):.6f}",
+                    f"{float(r['error_bound_m']):.6f}", r["node_pairs"]) for r in rows])
+    write(results, "distance.md", text)
+    return True
+
+
 def read_add_object(results):
     """The rows of bench_add_object, by (shape, kind) in the order they came; none if the
     file is not there."""
@@ -890,7 +913,7 @@ def doc_section(results, name, note="", plot=None):
     return text
 
 
-def benchmarks_doc(results, registration, forces, add_object, zoo, registered_objects):
+def benchmarks_doc(results, registration, forces, add_object, zoo, registered_objects, distance):
     """docs/benchmarks.md: the fixed introduction, then every table and plot of this run."""
     sections = [doc_section(results, "summary.md"),
                 doc_section(results, "s1.md", plot="s1_time_vs_points.png"),
@@ -908,6 +931,8 @@ def benchmarks_doc(results, registration, forces, add_object, zoo, registered_ob
         sections.append(doc_section(results, "registered_objects.md"))
     if add_object:
         sections.append(doc_section(results, "add_object.md", plot="add_object_time_vs_points.png"))
+    if distance:
+        sections.append(doc_section(results, "distance.md"))
     sections.append(doc_section(results, "memory.md"))
     if os.path.exists(os.path.join(results, "latency.md")):
         sections.append(doc_section(results, "latency.md", note=(
@@ -956,6 +981,7 @@ def main():
     add_object = read_add_object(results)
     if add_object:
         add_object_report(results, add_object)
+    distance = distance_report(results)
     headline = headline_table(sizes, ms, methods, s2_rows, s3, registration, add_object)
     summary(results, headline,
             targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object))
@@ -964,7 +990,8 @@ def main():
             (["registration.md"] if registration else []) + \
             (["registration_zoo.md"] if zoo else []) + \
             (["registered_objects.md"] if registered_objects else []) + \
-            (["add_object.md"] if add_object else []):
+            (["add_object.md"] if add_object else []) + \
+            (["distance.md"] if distance else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
     print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "
@@ -974,7 +1001,7 @@ def main():
     if os.path.realpath(results) != os.path.realpath(os.path.join(PACKAGE, "bench", "results")):
         print(f"report: {results} is not bench/results; docs/benchmarks.md and README.md left alone")
         return
-    benchmarks_doc(results, registration, forces, add_object, zoo, registered_objects)
+    benchmarks_doc(results, registration, forces, add_object, zoo, registered_objects, distance)
     print("report: docs/benchmarks.md written")
     if not readme_block(headline):
         print("report: README.md has no results markers; left alone")

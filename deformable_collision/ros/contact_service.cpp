@@ -29,8 +29,10 @@ bool resolveObject(const std::vector<NamedObject>& objects, const std::string& n
 }
 
 static_assert(int{SetLevel::Request::FINEST} == int{GetContacts::Request::FINEST} &&
-                  int{SetLevel::Request::RUNNING} == int{GetContacts::Request::RUNNING},
-              "both services name levels alike");
+                  int{SetLevel::Request::RUNNING} == int{GetContacts::Request::RUNNING} &&
+                  int{GetDistance::Request::FINEST} == int{GetContacts::Request::FINEST} &&
+                  int{GetDistance::Request::RUNNING} == int{GetContacts::Request::RUNNING},
+              "the services name levels alike");
 
 /// A level a request may name apart from RUNNING: FINEST or one in [0, max_level].
 bool isRequestableLevel(int level, int max_level) {
@@ -144,6 +146,89 @@ void answerGetContacts(Scene& scene, const LevelCosts& detection_costs,
   fillContactArray(scene, scratch, level, response.contacts);
   response.message =
       std::to_string(scratch.size()) + " contacts at level " + std::to_string(level) + budget_note;
+}
+
+namespace {
+
+/// The two objects of a distance request, both named and distinct; false, with the
+/// problem said, otherwise.
+bool resolveDistancePair(const std::vector<NamedObject>& objects,
+                         const GetDistance::Request& request, std::optional<std::size_t>& a,
+                         std::optional<std::size_t>& b, std::string& problem) {
+  if (request.object_a.empty() || request.object_b.empty()) {
+    problem = "object_a and object_b must both be named";
+    return false;
+  }
+  if (request.object_a == request.object_b) {
+    problem = "object_a and object_b are both '" + request.object_a + "'";
+    return false;
+  }
+  bool a_has_shape = true, b_has_shape = true;
+  return resolveObject(objects, request.object_a, a, a_has_shape, problem) &&
+         resolveObject(objects, request.object_b, b, b_has_shape, problem);
+}
+
+/// The request's level: RUNNING and FINEST resolved; std::nullopt, with the problem said,
+/// outside [0, max_level].
+std::optional<int> resolveDistanceLevel(const Scene& scene, int level, std::string& problem) {
+  const int max_level = scene.maxLevel();
+  if (level == GetDistance::Request::RUNNING) return scene.level();
+  if (level == GetDistance::Request::FINEST) return max_level;
+  if (isRequestableLevel(level, max_level)) return level;
+  problem = levelOutOfRange(level, max_level);
+  return std::nullopt;
+}
+
+}  // namespace
+
+void answerGetDistance(Scene& scene, const std::vector<NamedObject>& objects,
+                       const GetDistance::Request& request, GetDistance::Response& response) {
+  response = GetDistance::Response();
+  std::optional<std::size_t> a, b;
+  if (!resolveDistancePair(objects, request, a, b, response.message)) return;
+  if (!(request.max_distance_m >= 0.0) || !std::isfinite(request.max_distance_m)) {
+    std::ostringstream problem;
+    problem << "max_distance_m = " << request.max_distance_m << " must be finite and >= 0";
+    response.message = problem.str();
+    return;
+  }
+  const std::optional<int> level = resolveDistanceLevel(scene, request.level, response.message);
+  if (!level) return;
+  response.success = true;
+  if (!a || !b) {
+    response.distance.object_a = request.object_a;
+    response.distance.object_b = request.object_b;
+    response.distance.level = static_cast<std::uint8_t>(*level);
+    response.message = "object '" + (a ? request.object_b : request.object_a) +
+                       "' has had no valid cloud yet: no distance";
+    return;
+  }
+  fillDistance(scene, *a, *b, *level, request.max_distance_m, response.distance);
+  std::ostringstream message;
+  if (response.distance.found) {
+    message << response.distance.distance_m << " m at level " << *level
+            << (response.distance.error_bound_m == 0.0 ? " (exact)" : " (a lower bound)");
+  } else {
+    message << "farther apart than " << request.max_distance_m << " m at level " << *level;
+  }
+  response.message = message.str();
+}
+
+void fillDistance(Scene& scene, std::size_t object_a, std::size_t object_b, int level,
+                  double max_distance_m, Distance& message) {
+  message.object_a = scene.objectConfig(object_a).name;
+  message.object_b = scene.objectConfig(object_b).name;
+  message.level = static_cast<std::uint8_t>(level);
+  const std::optional<ClosestPoints> closest =
+      scene.closestPoints(object_a, object_b, level, max_distance_m);
+  message.found = closest.has_value();
+  // A message filled again (~distances) keeps nothing of the last pair found.
+  const ClosestPoints found = closest.value_or(ClosestPoints{});
+  message.distance_m = found.distance_m;
+  message.error_bound_m = found.error_bound_m;
+  message.point_a = toPointMessage(found.point_a);
+  message.point_b = toPointMessage(found.point_b);
+  message.normal = toVectorMessage(found.normal);
 }
 
 void fillContactArray(const Scene& scene, const std::vector<SceneContact>& contacts, int level,

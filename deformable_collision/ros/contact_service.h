@@ -6,7 +6,9 @@
 #include <vector>
 
 #include "deformable_collision/ContactArray.h"
+#include "deformable_collision/Distance.h"
 #include "deformable_collision/GetContacts.h"
+#include "deformable_collision/GetDistance.h"
 #include "deformable_collision/SetLevel.h"
 #include "deformable_collision/core/lod/level_costs.h"
 #include "deformable_collision/core/scene/scene.h"
@@ -20,8 +22,8 @@ struct NamedObject {
   std::optional<std::size_t> scene_index;
 };
 
-/// The answers of `~set_level` and `~get_contacts`, apart from the node so that tests and
-/// fuzzers can put any request to them. A bad request gets success = false and a message
+/// The answers of `~set_level`, `~get_contacts` and `~get_distance`, apart from the node so that
+/// tests and fuzzers can put any request to them. A bad request gets success = false and a message
 /// that says what is wrong; it changes nothing.
 
 /// SetLevel's level for "auto": the level of each cycle picked to fit the cycle budget.
@@ -43,6 +45,18 @@ void answerSetLevel(Scene& scene, const SetLevel::Request& request, SetLevel::Re
 void answerGetContacts(Scene& scene, const LevelCosts& detection_costs,
                        const std::vector<NamedObject>& objects, const GetContacts::Request& request,
                        std::vector<SceneContact>& scratch, GetContacts::Response& response);
+
+/// The closest points of the two named objects (both required, distinct) on the current
+/// state at the requested level (FINEST: exact; RUNNING: the running one), within
+/// `max_distance_m` (Scene::closestPoints); found = false beyond it, or for an object that
+/// has had no cloud yet. The running level is left alone. The caller sets the header.
+void answerGetDistance(Scene& scene, const std::vector<NamedObject>& objects,
+                       const GetDistance::Request& request, GetDistance::Response& response);
+
+/// The closest points of two objects of the scene at a level in [0, maxLevel()] within
+/// `max_distance_m` (Scene::closestPoints) as a message; found = false beyond it.
+void fillDistance(Scene& scene, std::size_t object_a, std::size_t object_b, int level,
+                  double max_distance_m, Distance& message);
 
 /// Writes `contacts` (found at `level`) as a message, with the objects' names.
 void fillContactArray(const Scene& scene, const std::vector<SceneContact>& contacts, int level,

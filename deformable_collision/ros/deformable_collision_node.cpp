@@ -74,6 +74,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
           std::chrono::duration<double>(1.0 / config_.rate_hz))),
       cycle_wait_(kIdleWait),
       outputs_(Clock::now(), cycle_period_),
+      distance_outputs_(config_.distance_pairs),
       diagnostics_(config_.diagnostics, slots_, outputs_),
       reader_spinner_(1, &reader_queue_) {
   for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
@@ -107,6 +108,7 @@ void DeformableCollisionNode::connect() {
   cycle_private_handle.setCallbackQueue(&cycle_queue_);
   // Advertised on the cycle's queue, so that the cycle alone counts their subscribers.
   outputs_.advertise(cycle_private_handle);
+  distance_outputs_.advertise(cycle_private_handle);
   diagnostics_.start(cycle_handle, private_handle_);
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     ObjectSlot& slot = slots_[i];
@@ -132,6 +134,8 @@ void DeformableCollisionNode::connect() {
       "set_level", &DeformableCollisionNode::onSetLevel, this);
   get_contacts_service_ = cycle_private_handle.advertiseService(
       "get_contacts", &DeformableCollisionNode::onGetContacts, this);
+  get_distance_service_ = cycle_private_handle.advertiseService(
+      "get_distance", &DeformableCollisionNode::onGetDistance, this);
   if (config_.cycle_on == CycleOn::kTimer) {
     timer_ = cycle_handle.createTimer(ros::Duration(1.0 / config_.rate_hz),
                                       &DeformableCollisionNode::onTimer, this);
@@ -364,6 +368,7 @@ void DeformableCollisionNode::runCycle() {
   times.contacts_published = Clock::now();
   times.contacts_published_ros = ros::Time::now();
   const std::optional<Clock::time_point> oldest_input = recordLatencies(times);
+  distance_outputs_.publish(scene_, namedObjects(), header);
   outputs_.publishMarkers(scene_, config_.markers_colliding_only, header);
   outputs_.publishForces(scene_, config_.force_marker_scale_m_per_n, header);
   publishWrenches(header.stamp);
@@ -453,13 +458,25 @@ bool DeformableCollisionNode::onSetLevel(SetLevel::Request& request, SetLevel::R
   return true;
 }
 
+const std::vector<NamedObject>& DeformableCollisionNode::namedObjects() {
+  for (std::size_t i = 0; i < slots_.size(); ++i) named_objects_[i].scene_index = slots_[i].index;
+  return named_objects_;
+}
+
 bool DeformableCollisionNode::onGetContacts(GetContacts::Request& request,
                                             GetContacts::Response& response) {
-  for (std::size_t i = 0; i < slots_.size(); ++i) named_objects_[i].scene_index = slots_[i].index;
-  answerGetContacts(scene_, scene_.detectionCosts(), named_objects_, request, query_contacts_,
+  answerGetContacts(scene_, scene_.detectionCosts(), namedObjects(), request, query_contacts_,
                     response);
   response.contacts.header.stamp = ros::Time::now();
   response.contacts.header.frame_id = config_.fixed_frame;
+  return true;
+}
+
+bool DeformableCollisionNode::onGetDistance(GetDistance::Request& request,
+                                            GetDistance::Response& response) {
+  answerGetDistance(scene_, namedObjects(), request, response);
+  response.header.stamp = ros::Time::now();
+  response.header.frame_id = config_.fixed_frame;
   return true;
 }
 

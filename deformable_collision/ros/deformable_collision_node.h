@@ -21,6 +21,7 @@
 #include "deformable_collision/ros/cloud_reader.h"
 #include "deformable_collision/ros/contact_service.h"
 #include "deformable_collision/ros/counted_publisher.h"
+#include "deformable_collision/ros/distance_outputs.h"
 #include "deformable_collision/ros/node_config.h"
 #include "deformable_collision/ros/node_diagnostics.h"
 #include "deformable_collision/ros/node_outputs.h"
@@ -130,7 +131,10 @@ class DeformableCollisionNode {
   void publishStats(const std_msgs::Header& header, const CycleTimes& times,
                     std::optional<Clock::time_point> oldest_input, std::size_t points);
   bool onSetLevel(SetLevel::Request& request, SetLevel::Response& response);
+  /// The services' view of the objects, with the scene indices they have now.
+  const std::vector<NamedObject>& namedObjects();
   bool onGetContacts(GetContacts::Request& request, GetContacts::Response& response);
+  bool onGetDistance(GetDistance::Request& request, GetDistance::Response& response);
 
   // The queues come first: handles, subscribers and timers that use them go before them.
   ros::CallbackQueue reader_queue_;
@@ -146,6 +150,7 @@ class DeformableCollisionNode {
 
   ros::ServiceServer set_level_service_;
   ros::ServiceServer get_contacts_service_;
+  ros::ServiceServer get_distance_service_;
   ros::Timer timer_;
   ros::Timer retry_timer_;
 
@@ -183,6 +188,7 @@ class DeformableCollisionNode {
   /// The services' view of slots_: names point into slots_[i].params, which never moves.
   std::vector<NamedObject> named_objects_;
   NodeOutputs outputs_;
+  DistanceOutputs distance_outputs_;
   NodeDiagnostics diagnostics_;
 
   // Last: they start after everything they use exists and stop before it goes.

@@ -497,6 +497,36 @@ void readLevel(ParamReader& read, SceneConfig& scene) {
   scene.cycle_budget_ms = read.number("cycle_budget_ms", 0.0, 0.0, 1e6, true);
 }
 
+/// An object named by distance_pairs[i].`key`: one of the objects (robot links included).
+std::string readPairObject(ParamReader& read, const std::string& key, const NodeConfig& config) {
+  const std::string name = read.requiredText(key);
+  const bool known = std::any_of(config.objects.begin(), config.objects.end(),
+                                 [&](const ObjectParams& o) { return o.object.name == name; });
+  if (!known) ParamReader::fail(read.name(key), "= '" + name + "' is not an object");
+  return name;
+}
+
+/// distance_pairs, read after objects and robot: pairs of distinct objects.
+void readDistancePairs(const XmlRpcValue& list, NodeConfig& config) {
+  if (list.getType() != XmlRpcValue::TypeArray) {
+    ParamReader::fail("distance_pairs",
+                      "must be a list of {object_a, object_b, max_distance_m, level}");
+  }
+  for (int i = 0; i < list.size(); ++i) {
+    ParamReader read(list[i], "distance_pairs[" + std::to_string(i) + "]");
+    DistancePairParams pair;
+    pair.object_a = readPairObject(read, "object_a", config);
+    pair.object_b = readPairObject(read, "object_b", config);
+    if (pair.object_a == pair.object_b) {
+      ParamReader::fail(read.name("object_b"), "= '" + pair.object_b + "' is object_a too");
+    }
+    pair.max_distance_m = read.number("max_distance_m", pair.max_distance_m, 0.0, 1e6);
+    pair.level = static_cast<int>(read.integer("level", pair.level, -1, 255));
+    read.finish();
+    config.distance_pairs.push_back(pair);
+  }
+}
+
 /// Clouds start cycles only if some object's clouds are read every time: a tracked or
 /// registered one.
 void checkCloudsStartCycles(const NodeConfig& config) {
@@ -575,6 +605,7 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   }
   readObjects(read, config);
   if (const XmlRpcValue* robot = read.find("robot")) readRobot(*robot, config);
+  if (const XmlRpcValue* pairs = read.find("distance_pairs")) readDistancePairs(*pairs, config);
   checkCloudsStartCycles(config);
   read.finish();
   return config;

@@ -79,6 +79,15 @@ struct DiagnosticsParams {
   double latency_error_ms = 1000.0;
 };
 
+/// One of `distance_pairs`: two objects whose closest points each cycle publishes on
+/// ~distances, within max_distance_m, at `level` (-1: the finest, exact).
+struct DistancePairParams {
+  std::string object_a;
+  std::string object_b;
+  double max_distance_m = 1.0;
+  int level = -1;
+};
+
 /// Every parameter of the node, in SI units, validated.
 struct NodeConfig {
   std::string fixed_frame = "world";
@@ -110,6 +119,7 @@ struct NodeConfig {
   SceneConfig scene;
   std::vector<ObjectParams> objects;
   std::optional<RobotParams> robot;
+  std::vector<DistancePairParams> distance_pairs;
 };
 
 /// Fills a NodeConfig from the node's private parameters (a struct, as returned by

@@ -1,6 +1,6 @@
-// libFuzzer target: the answers of ~set_level and ~get_contacts to any sequence of
-// requests, on the squeezed gripper scene (every kind of object, contacts at every level)
-// plus a configured object that has had no cloud. Every input starts from the same state.
+// libFuzzer target: the answers of ~set_level, ~get_contacts and ~get_distance to any
+// sequence of requests, on the squeezed gripper scene (every kind of object, contacts at every
+// level) plus a configured object that has had no cloud. Every input starts from the same state.
 #include <fuzzer/FuzzedDataProvider.h>
 
 #include <cmath>
@@ -111,7 +111,8 @@ void setLevel(FuzzedDataProvider& input, Fixture& f) {
   check(!response.message.empty(), "set_level said nothing");
 }
 
-void getContacts(FuzzedDataProvider& input, Fixture& f) {
+/// Returns the request, for getDistance().
+GetContacts::Request getContacts(FuzzedDataProvider& input, Fixture& f) {
   GetContacts::Request request;
   request.object_a = objectName(input, f);
   request.object_b = objectName(input, f);
@@ -134,7 +135,7 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
   check(!response.message.empty(), "get_contacts said nothing");
   if (!response.success) {
     check(response.contacts.contacts.empty(), "a refused query returned contacts");
-    return;
+    return request;
   }
   check(response.level == level && response.contacts.level == level, "contacts of another level");
   for (const Contact& contact : response.contacts.contacts) {
@@ -155,6 +156,39 @@ void getContacts(FuzzedDataProvider& input, Fixture& f) {
     check(std::isfinite(contact.error_bound_m) && contact.error_bound_m >= 0.0,
           "an error bound that is not finite and >= 0");
   }
+  return request;
+}
+
+/// ~get_distance between the objects and at the level a contact request named, within a
+/// drawn maximum: drawn last, so that inputs kept from before it still ask what they asked.
+void getDistance(FuzzedDataProvider& input, Fixture& f, const GetContacts::Request& contacts) {
+  GetDistance::Request request;
+  request.object_a = contacts.object_a;
+  request.object_b = contacts.object_b;
+  request.level = contacts.level;
+  request.max_distance_m = requestedBudget(input);
+  const int running = f.scene->level();
+  const int level = namedLevel(*f.scene, request.level);
+  GetDistance::Response response;
+  answerGetDistance(*f.scene, f.objects, request, response);
+  const bool valid = !request.object_a.empty() && !request.object_b.empty() &&
+                     request.object_a != request.object_b && known(f, request.object_a) &&
+                     known(f, request.object_b) && request.max_distance_m >= 0.0 &&
+                     std::isfinite(request.max_distance_m) && level >= 0;
+  check(response.success == valid, "get_distance accepted wrongly");
+  check(f.scene->level() == running, "get_distance changed the running level");
+  check(!response.message.empty(), "get_distance said nothing");
+  if (!response.distance.found) return;
+  check(response.success && response.distance.level == level, "a distance of another level");
+  check(std::isfinite(response.distance.distance_m) && response.distance.distance_m >= 0.0 &&
+            response.distance.distance_m <= request.max_distance_m,
+        "a distance that is not finite, >= 0 and within the maximum");
+  check(std::isfinite(response.distance.error_bound_m) && response.distance.error_bound_m >= 0.0,
+        "a distance's error bound that is not finite and >= 0");
+  const double length = std::sqrt(response.distance.normal.x * response.distance.normal.x +
+                                  response.distance.normal.y * response.distance.normal.y +
+                                  response.distance.normal.z * response.distance.normal.z);
+  check(std::abs(length - 1.0) < 1e-9, "a distance normal that is not unit length");
 }
 
 }  // namespace
@@ -167,7 +201,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* bytes, std::size_t siz
     if (input.ConsumeBool()) {
       setLevel(input, f);
     } else {
-      getContacts(input, f);
+      getDistance(input, f, getContacts(input, f));
     }
   }
   return 0;

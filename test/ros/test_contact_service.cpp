@@ -43,6 +43,18 @@ class ContactServiceTest : public ::testing::Test {
     return response;
   }
 
+  GetDistance::Response distance(const std::string& a, const std::string& b, int level,
+                                 double max_distance_m = 1.0) {
+    GetDistance::Request request;
+    request.object_a = a;
+    request.object_b = b;
+    request.level = static_cast<std::int16_t>(level);
+    request.max_distance_m = max_distance_m;
+    GetDistance::Response response;
+    answerGetDistance(*scene_, objects_, request, response);
+    return response;
+  }
+
   std::unique_ptr<Scene> scene_;
   LevelCosts detection_costs_;
   std::vector<NamedObject> objects_;
@@ -308,6 +320,68 @@ TEST_F(ContactServiceTest, GetContactsOfAnObjectWithoutACloudIsEmptyAndSaysSo) {
   EXPECT_TRUE(response.contacts.contacts.empty());
   EXPECT_NE(response.message.find("'late' has had no valid cloud yet"), std::string::npos)
       << response.message;
+}
+
+TEST_F(ContactServiceTest, GetDistanceAnswersTheClosestPointsAtTheLevelAskedFor) {
+  const int finest = scene_->maxLevel();
+  const GetDistance::Response exact = distance("floor", "jaw_left", GetDistance::Request::FINEST);
+  ASSERT_TRUE(exact.success) << exact.message;
+  ASSERT_TRUE(exact.distance.found) << exact.message;
+  EXPECT_EQ(exact.distance.level, finest);
+  EXPECT_EQ(exact.distance.error_bound_m, 0.0);
+  const Eigen::Vector3d a(exact.distance.point_a.x, exact.distance.point_a.y,
+                          exact.distance.point_a.z);
+  const Eigen::Vector3d b(exact.distance.point_b.x, exact.distance.point_b.y,
+                          exact.distance.point_b.z);
+  EXPECT_NEAR((a - b).norm(), exact.distance.distance_m, 1e-12);
+  EXPECT_NE(exact.message.find("(exact)"), std::string::npos) << exact.message;
+  const GetDistance::Response coarse = distance("floor", "jaw_left", 1);
+  ASSERT_TRUE(coarse.distance.found) << coarse.message;
+  EXPECT_EQ(coarse.distance.level, 1);
+  EXPECT_LE(coarse.distance.distance_m, exact.distance.distance_m);
+  EXPECT_GE(coarse.distance.distance_m + coarse.distance.error_bound_m, exact.distance.distance_m);
+  const GetDistance::Response running =
+      distance("jaw_left", "floor", GetDistance::Request::RUNNING);
+  EXPECT_EQ(running.distance.level, scene_->level());
+  EXPECT_EQ(scene_->level(), finest) << "the running level stays";
+}
+
+TEST_F(ContactServiceTest, GetDistanceBeyondTheMaximumIsNotFound) {
+  const double exact =
+      distance("floor", "jaw_left", GetDistance::Request::FINEST).distance.distance_m;
+  const GetDistance::Response response =
+      distance("floor", "jaw_left", GetDistance::Request::FINEST, 0.5 * exact);
+  EXPECT_TRUE(response.success);
+  EXPECT_FALSE(response.distance.found);
+  EXPECT_NE(response.message.find("farther apart than"), std::string::npos) << response.message;
+  const GetDistance::Response late = distance("fruit", "late", 0);
+  EXPECT_TRUE(late.success);
+  EXPECT_FALSE(late.distance.found);
+  EXPECT_NE(late.message.find("'late' has had no valid cloud yet"), std::string::npos);
+}
+
+TEST_F(ContactServiceTest, GetDistanceRefusesBadRequestsSayingWhy) {
+  struct Bad {
+    const char* a;
+    const char* b;
+    int level;
+    double max_distance_m;
+    const char* says;
+  };
+  const Bad cases[] = {
+      {"", "floor", -1, 1.0, "must both be named"},
+      {"floor", "floor", -1, 1.0, "are both 'floor'"},
+      {"floor", "ghost", -1, 1.0, "unknown object 'ghost'"},
+      {"floor", "fruit", 99, 1.0, "level 99 is outside"},
+      {"floor", "fruit", -3, 1.0, "level -3 is outside"},
+      {"floor", "fruit", -1, -1.0, "max_distance_m = -1"},
+      {"floor", "fruit", -1, std::numeric_limits<double>::infinity(), "max_distance_m = inf"},
+  };
+  for (const Bad& c : cases) {
+    const GetDistance::Response response = distance(c.a, c.b, c.level, c.max_distance_m);
+    EXPECT_FALSE(response.success) << c.says;
+    EXPECT_NE(response.message.find(c.says), std::string::npos) << response.message;
+  }
 }
 
 }  // namespace

@@ -545,6 +545,63 @@ INSTANTIATE_TEST_SUITE_P(
                      "robot.description_param = 'robot description' is not a parameter name"}),
     [](const ::testing::TestParamInfo<BadRobotCase>& info) { return info.param.name; });
 
+TEST(NodeConfig, DistancePairsNameTwoObjectsWithTheirMaximumAndLevel) {
+  XmlRpcValue params = validParams();
+  params["distance_pairs"][0]["object_a"] = "fruit";
+  params["distance_pairs"][0]["object_b"] = "jaw";
+  params["distance_pairs"][0]["max_distance_m"] = 0.2;
+  params["distance_pairs"][0]["level"] = 2;
+  params["distance_pairs"][1]["object_a"] = "hand";
+  params["distance_pairs"][1]["object_b"] = "floor";
+  const NodeConfig config = parseWithoutWarnings(params);
+  ASSERT_EQ(config.distance_pairs.size(), 2u);
+  EXPECT_EQ(config.distance_pairs[0].object_a, "fruit");
+  EXPECT_EQ(config.distance_pairs[0].object_b, "jaw");
+  EXPECT_DOUBLE_EQ(config.distance_pairs[0].max_distance_m, 0.2);
+  EXPECT_EQ(config.distance_pairs[0].level, 2);
+  EXPECT_DOUBLE_EQ(config.distance_pairs[1].max_distance_m, 1.0) << "the default";
+  EXPECT_EQ(config.distance_pairs[1].level, -1) << "the finest by default";
+  EXPECT_TRUE(parseWithoutWarnings(validParams()).distance_pairs.empty());
+}
+
+TEST(NodeConfig, BadDistancePairsAreRefusedNamingTheKey) {
+  const auto pair = [](const char* a, const char* b) {
+    XmlRpcValue value;
+    value["object_a"] = a;
+    value["object_b"] = b;
+    return value;
+  };
+  const BadParamCase cases[] = {
+      {"NotAList", [](XmlRpcValue& p) { p["distance_pairs"] = "fruit"; },
+       "distance_pairs must be a list"},
+      {"Unknown", [&](XmlRpcValue& p) { p["distance_pairs"][0] = pair("fruit", "pear"); },
+       "distance_pairs[0].object_b = 'pear' is not an object"},
+      {"Missing", [&](XmlRpcValue& p) { p["distance_pairs"][0]["object_a"] = "fruit"; },
+       "distance_pairs[0].object_b is missing"},
+      {"Same", [&](XmlRpcValue& p) { p["distance_pairs"][0] = pair("jaw", "jaw"); },
+       "distance_pairs[0].object_b = 'jaw' is object_a too"},
+      {"NegativeMaximum",
+       [&](XmlRpcValue& p) {
+         p["distance_pairs"][0] = pair("fruit", "jaw");
+         p["distance_pairs"][0]["max_distance_m"] = -0.1;
+       },
+       "distance_pairs[0].max_distance_m = -0.1"},
+      {"LevelBelowFinest",
+       [&](XmlRpcValue& p) {
+         p["distance_pairs"][0] = pair("fruit", "jaw");
+         p["distance_pairs"][0]["level"] = -2;
+       },
+       "distance_pairs[0].level = -2"},
+      {"Misspelt",
+       [&](XmlRpcValue& p) {
+         p["distance_pairs"][0] = pair("fruit", "jaw");
+         p["distance_pairs"][0]["max_distance"] = 0.1;
+       },
+       "distance_pairs[0].max_distance is not a known"},
+  };
+  for (const BadParamCase& c : cases) expectRefused(validParams(), c);
+}
+
 TEST(NodeConfig, RobotLinkObjectNamesAreValidObjectNames) {
   EXPECT_EQ(robotLinkObjectName("finger"), "finger");
   EXPECT_EQ(robotLinkObjectName("panda_leftfinger"), "panda_leftfinger");

@@ -1,6 +1,8 @@
 // The node executable (rostest node_executable.test): demo.launch standalone:=true runs the
 // gripper demo's config in a process of its own, which reads the scene's clouds, finds the
-// fruit on the floor and in the jaws, and answers its services. Every wait has a timeout.
+// fruit on the floor and in the jaws, and answers its services (contacts, the distance of
+// the jaws across the fruit) and publishes the distances of its configured pairs. Every wait has a
+// timeout.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
@@ -10,7 +12,9 @@
 #include <utility>
 
 #include "deformable_collision/ContactArray.h"
+#include "deformable_collision/DistanceArray.h"
 #include "deformable_collision/GetContacts.h"
+#include "deformable_collision/GetDistance.h"
 
 namespace deformable_collision {
 namespace test {
@@ -55,6 +59,48 @@ TEST(NodeExecutable, RunsTheGripperDemoWithoutAManager) {
   ASSERT_TRUE(client.call(query));
   EXPECT_TRUE(query.response.success) << query.response.message;
   EXPECT_FALSE(query.response.contacts.contacts.empty());
+
+  ros::ServiceClient distance = handle.serviceClient<GetDistance>(kNode + "/get_distance");
+  ASSERT_TRUE(distance.waitForExistence(ros::Duration(10.0)));
+  GetDistance jaws;
+  jaws.request.object_a = "jaw_left";
+  jaws.request.object_b = "jaw_right";
+  jaws.request.level = GetDistance::Request::FINEST;
+  jaws.request.max_distance_m = 1.0;
+  ASSERT_TRUE(distance.call(jaws));
+  ASSERT_TRUE(jaws.response.distance.found) << jaws.response.message;
+  EXPECT_EQ(jaws.response.header.frame_id, "world");
+  EXPECT_EQ(jaws.response.distance.error_bound_m, 0.0);
+  // The jaws close from 20 to 12 cm apart on the fruit (demoKinematicPose).
+  EXPECT_GT(jaws.response.distance.distance_m, 0.05) << jaws.response.message;
+  EXPECT_LT(jaws.response.distance.distance_m, 0.21) << jaws.response.message;
+  EXPECT_GT(jaws.response.distance.normal.x * jaws.response.distance.normal.x, 0.9)
+      << "across the jaws, along x";
+}
+
+TEST(NodeExecutable, PublishesTheDistancesOfTheConfiguredPairs) {
+  ros::NodeHandle handle;
+  DistanceArray::ConstPtr last;
+  const ros::Subscriber subscriber = handle.subscribe<DistanceArray>(
+      kNode + "/distances", 10, [&](const DistanceArray::ConstPtr& m) { last = m; });
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
+  const auto allFound = [&] {
+    return last && last->distances.size() == 2 && last->distances[0].found &&
+           last->distances[1].found;
+  };
+  while (ros::ok() && !allFound() && ros::WallTime::now() < deadline) {
+    ros::spinOnce();
+    ros::WallDuration(0.01).sleep();
+  }
+  ASSERT_TRUE(allFound()) << "config/demo.yaml's two distance_pairs, within 0.1 m";
+  EXPECT_EQ(last->header.frame_id, "world");
+  for (const Distance& d : last->distances) {
+    EXPECT_EQ(d.object_a, "fruit");
+    EXPECT_LE(d.distance_m, 0.1);
+    EXPECT_EQ(d.error_bound_m, 0.0) << "the finest level";
+  }
+  EXPECT_EQ(last->distances[0].object_b, "jaw_left");
+  EXPECT_EQ(last->distances[1].object_b, "jaw_right");
 }
 
 }  // namespace

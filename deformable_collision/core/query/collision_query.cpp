@@ -5,16 +5,10 @@
 #include <limits>
 
 #include "deformable_collision/core/query/detail/collision_query_kernels.h"
+#include "deformable_collision/core/query/detail/direction.h"
 
 namespace deformable_collision {
 namespace {
-
-/// Unit vector from b to a, or +z when the two coincide (any direction is then as good).
-Eigen::Vector3d directionFrom(const Eigen::Vector3d& b, const Eigen::Vector3d& a) {
-  const Eigen::Vector3d d = a - b;
-  const double length = d.norm();
-  return length > 0.0 ? Eigen::Vector3d(d / length) : Eigen::Vector3d::UnitZ();
-}
 
 /// SphereContact::error_bound_m of a contact of two nodes above the leaves, from their
 /// spheres, which hold a closest pair (x, y) of their points: (x + y) / 2 lies within

@@ -399,6 +399,28 @@ void Scene::contactsAt(int level, std::optional<std::size_t> object_a,
   query_counters_ = kept_counters;
 }
 
+std::optional<ClosestPoints> Scene::closestPoints(std::size_t object_a, std::size_t object_b,
+                                                  int level, double max_distance_m) {
+  if (level < 0 || level > maxLevel()) {
+    throw std::out_of_range("level " + std::to_string(level) + " is outside [0, " +
+                            std::to_string(maxLevel()) + "]");
+  }
+  for (const std::size_t object : {object_a, object_b}) {
+    if (object >= objects_.size()) {
+      throw std::out_of_range("object " + std::to_string(object) + " is outside [0, " +
+                              std::to_string(objects_.size()) + ")");
+    }
+  }
+  Object& a = *objects_[object_a];
+  Object& b = *objects_[object_b];
+  if (object_a == object_b) {
+    throw std::invalid_argument("the distance of object '" + a.config.name + "' to itself");
+  }
+  refreshStaleTrees();
+  QueryCounters counters;
+  return distance_.closest(a.tree, b.tree, level, max_distance_m, counters);
+}
+
 std::optional<std::size_t> Scene::findObject(const std::string& name) const {
   for (std::size_t i = 0; i < objects_.size(); ++i) {
     if (objects_[i]->config.name == name) return i;

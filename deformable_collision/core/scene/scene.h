@@ -14,6 +14,7 @@
 #include "deformable_collision/core/lod/level_costs.h"
 #include "deformable_collision/core/query/broad_phase.h"
 #include "deformable_collision/core/query/collision_query.h"
+#include "deformable_collision/core/query/distance_query.h"
 #include "deformable_collision/core/registration/cloud_registration.h"
 #include "deformable_collision/core/response/contact_forces.h"
 #include "deformable_collision/core/response/contact_response.h"
@@ -300,6 +301,16 @@ class Scene {
   void contactsAt(int level, std::optional<std::size_t> object_a,
                   std::optional<std::size_t> object_b, std::vector<SceneContact>& contacts);
 
+  /// The closest points of objects a and b at `level` on the current state, from the same
+  /// hierarchies (HierarchyDistance): exact at their leaves, a lower bound with its error
+  /// above them; std::nullopt if no two points can be within `max_distance_m`. The running
+  /// level and the last cycle's contacts are left alone.
+  /// @throw std::out_of_range if level is not in [0, maxLevel()] or an object index is not;
+  /// std::invalid_argument if the objects are the same or max_distance_m is negative or not
+  /// finite.
+  std::optional<ClosestPoints> closestPoints(std::size_t object_a, std::size_t object_b, int level,
+                                             double max_distance_m);
+
   const std::vector<SceneContact>& contacts() const { return contacts_; }
   const CycleStats& stats() const { return stats_; }
   const SceneConfig& config() const { return config_; }
@@ -356,6 +367,7 @@ class Scene {
   std::vector<std::unique_ptr<Object>> objects_;
   BroadPhase broad_phase_;
   HierarchyQuery query_;
+  HierarchyDistance distance_;
   std::optional<LevelBudget> level_budget_;  ///< Set in budget mode.
   CycleCostSource cycle_cost_source_;        ///< Empty: the measured time.
   LevelCosts detection_costs_;
