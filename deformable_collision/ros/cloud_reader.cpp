@@ -31,7 +31,9 @@ CloudReader::CloudReader(const NodeConfig& config, std::vector<ObjectSlot>& slot
       tf_buffer_(tf_buffer),
       wake_cycle_(std::move(wake_cycle)),
       started_(Clock::now()),
-      readers_(slots.size()) {}
+      readers_(slots.size()),
+      registration_iterations_(config.scene.registration.iterations),
+      registration_max_cloud_points_(config.scene.registration.max_cloud_points) {}
 
 void CloudReader::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t index) {
   const auto start = Clock::now();
@@ -342,12 +344,19 @@ void CloudReader::fitTrackedCloud(ObjectReader& reader, ReadCloud& read) {
   read.fitted = true;
 }
 
-void CloudReader::registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadCloud& read) {
+void CloudReader::registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadCloud& read) const {
   // The cycle made the fitter before it said that the object exists, and leaves it to us.
   if (!reader.registration) {
     if (!slot.fitter) throw std::logic_error("the object exists without its registration");
     reader.registration = std::move(slot.fitter);
     slot.fitter.reset();
+  }
+  const int iterations = registration_iterations_;
+  const std::size_t max_cloud_points = registration_max_cloud_points_;
+  if (iterations != reader.iterations || max_cloud_points != reader.max_cloud_points) {
+    reader.registration->setWorkPerCloud(iterations, max_cloud_points);
+    reader.iterations = iterations;
+    reader.max_cloud_points = max_cloud_points;
   }
   if (slot.near_points.take(reader.near_points))
     reader.registration->setPointsNearObject(reader.near_points);

@@ -46,6 +46,12 @@ class CloudReader {
   /// Tries the clouds that wait for their transform, in order; drops those that waited
   /// too long, and all of them when ROS time went back (the retry timer's callback).
   void retryAwaitingClouds();
+  /// The work per registered cloud from each registered object's next cloud on (a
+  /// reconfiguration). Either thread; values already checked (>= 1).
+  void setRegistrationWork(int iterations, std::size_t max_cloud_points) {
+    registration_iterations_ = iterations;
+    registration_max_cloud_points_ = max_cloud_points;
+  }
   /// Counts a dropped cloud and says why, at most once per 5 s per object. Either thread.
   void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
 
@@ -78,6 +84,9 @@ class CloudReader {
     /// and the other objects' points near it, as the cycle last gave them.
     std::optional<RegistrationFitter> registration;
     std::vector<Eigen::Vector3d> near_points;
+    /// The work per cloud `registration` was last given.
+    int iterations = 0;
+    std::size_t max_cloud_points = 0;
   };
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
   enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
@@ -131,7 +140,7 @@ class CloudReader {
   static void fitTrackedCloud(ObjectReader& reader, ReadCloud& read);
   /// Registers a registered object's cloud into `read.registration`, its fit (unless held)
   /// into `read.fit` and `read.points`, for the cycle to take over.
-  static void registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadCloud& read);
+  void registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadCloud& read) const;
   /// kNotYet: the transform may still come; kMissing: it did not come in time; kRefused:
   /// it never will (no frame, an unknown frame once tf has filled, not finite).
   TransformOutcome transformPoints(const ObjectSlot& slot, const sensor_msgs::PointCloud2& cloud,
@@ -155,6 +164,8 @@ class CloudReader {
   std::atomic<std::uint64_t> clouds_rejected_{0};
   std::atomic<std::uint64_t> non_finite_points_{0};
   std::atomic<std::uint64_t> busy_ns_{0};
+  std::atomic<int> registration_iterations_;
+  std::atomic<std::size_t> registration_max_cloud_points_;
 };
 
 }  // namespace deformable_collision

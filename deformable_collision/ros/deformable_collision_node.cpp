@@ -68,6 +68,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
       tf_listener_(tf_buffer_, node_handle),
       wake_(boost::make_shared<WakeUp>()),
       reader_(config_, slots_, scene_, handoff_, tf_buffer_, [this] { wakeCycle(); }),
+      reconfigure_(scene_, config_, slots_, reader_),
       taken_(config_.objects.size()),
       applied_(config_.objects.size()),
       cycle_period_(std::chrono::duration_cast<Clock::duration>(
@@ -110,6 +111,7 @@ void DeformableCollisionNode::connect() {
   outputs_.advertise(cycle_private_handle);
   distance_outputs_.advertise(cycle_private_handle);
   diagnostics_.start(cycle_handle, private_handle_);
+  reconfigure_.start(cycle_private_handle);
   for (std::size_t i = 0; i < slots_.size(); ++i) {
     ObjectSlot& slot = slots_[i];
     named_objects_.push_back({slot.params.object.name, std::nullopt});
@@ -262,6 +264,7 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
     addObject(slot, cloud);
   } else if (slot.params.on_cloud == OnCloud::kReset) {
     scene_.resetRestShape(*slot.index, std::move(cloud.prepared));
+    reconfigure_.reapply(slot);
   } else if (slot.params.on_cloud == OnCloud::kRegister) {
     takeRegistration(slot, cloud);
   }
@@ -279,6 +282,7 @@ bool DeformableCollisionNode::applyCloud(ObjectSlot& slot, ReadCloud& cloud) {
 
 void DeformableCollisionNode::addObject(ObjectSlot& slot, ReadCloud& cloud) {
   slot.index = scene_.addObject(std::move(cloud.prepared));
+  reconfigure_.reapply(slot);
   // The rest shape: the cloud's finite points, which the cloud may not hold any more (a later
   // cloud of a tracked object brings it, its points fitted).
   const std::vector<Eigen::Vector3d>& points = scene_.body(*slot.index).restPositions();
@@ -449,6 +453,8 @@ void DeformableCollisionNode::publishStats(const std_msgs::Header& header, const
   counts.clouds_coalesced = handoff_.coalesced() + clouds_superseded_;
   counts.non_finite_points = reader_.nonFinitePoints();
   counts.reader_busy_s = reader_.busySeconds();
+  counts.reconfigurations_accepted = reconfigure_.accepted();
+  counts.reconfigurations_refused = reconfigure_.refused();
   outputs_.publishStats(scene_, header, times, oldest_input, points, counts,
                         [this](Stats& stats) { fillRegistrationStats(stats); });
 }

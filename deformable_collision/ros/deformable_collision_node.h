@@ -25,6 +25,7 @@
 #include "deformable_collision/ros/node_config.h"
 #include "deformable_collision/ros/node_diagnostics.h"
 #include "deformable_collision/ros/node_outputs.h"
+#include "deformable_collision/ros/node_reconfigure.h"
 #include "deformable_collision/ros/object_slot.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
 
@@ -160,6 +161,7 @@ class DeformableCollisionNode {
   std::atomic<bool> stopping_{false};
   ros::CallbackInterfacePtr wake_;
   CloudReader reader_;
+  NodeReconfigure reconfigure_;  ///< The cycle's: its servers run on the cycle's queue.
 
   // The cycle's.
   std::vector<ReadCloud> taken_;

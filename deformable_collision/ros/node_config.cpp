@@ -605,6 +605,9 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
   }
   readObjects(read, config);
   if (const XmlRpcValue* robot = read.find("robot")) readRobot(*robot, config);
+  // The reconfigure servers' own namespace (NodeReconfigure): what they set there is theirs,
+  // and the loaded config, not it, is where a restarted node starts.
+  read.find("reconfigure");
   if (const XmlRpcValue* pairs = read.find("distance_pairs")) readDistancePairs(*pairs, config);
   checkCloudsStartCycles(config);
   read.finish();

@@ -89,6 +89,8 @@ void NodeOutputs::fillStats(const Scene& scene, const std_msgs::Header& header,
   stats.clouds_coalesced = counts.clouds_coalesced;
   stats.non_finite_points = counts.non_finite_points;
   stats.reader_busy_s = counts.reader_busy_s;
+  stats.reconfigurations_accepted = counts.reconfigurations_accepted;
+  stats.reconfigurations_refused = counts.reconfigurations_refused;
 }
 
 }  // namespace deformable_collision

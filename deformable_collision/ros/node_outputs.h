@@ -36,13 +36,15 @@ class NodeOutputs {
     Clock::time_point published;
   };
 
-  /// The input side's counts since the start, for ~stats.
+  /// The input side's counts since the start, and the reconfigurations', for ~stats.
   struct InputCounts {
     std::uint64_t clouds_received = 0;
     std::uint64_t clouds_rejected = 0;
     std::uint64_t clouds_coalesced = 0;
     std::uint64_t non_finite_points = 0;
     double reader_busy_s = 0.0;
+    std::uint32_t reconfigurations_accepted = 0;
+    std::uint32_t reconfigurations_refused = 0;
   };
 
   /// A cycle longer than `cycle_period` counts as an overrun; latencies are summarised

@@ -268,6 +268,16 @@ TEST(RegisteredHierarchy, EncloresEveryModelPointAfterEveryCloud) {
 }
 
 // A cloud that does not show the object leaves the model where it was, and says so.
+TEST(CloudRegistration, WorkPerCloudChangesAndBadWorkIsRefused) {
+  CloudRegistration registration(RegistrationConfig{});
+  registration.setWorkPerCloud(2, 500);
+  EXPECT_EQ(registration.config().iterations, 2);
+  EXPECT_EQ(registration.config().max_cloud_points, 500u);
+  EXPECT_THROW(registration.setWorkPerCloud(0, 500), std::invalid_argument);
+  EXPECT_THROW(registration.setWorkPerCloud(2, 0), std::invalid_argument);
+  EXPECT_EQ(registration.config().iterations, 2) << "a refused change keeps the old";
+}
+
 TEST(HeldCloud, ModelStaysForCloudsThatMissTheObject) {
   const SurfaceSamples model = boxSurface(2000, 5);
   ShapeMatchingBody body(model.points, ShapeMatchingConfig{});

@@ -77,6 +77,31 @@ TEST(Scene, StaticObjectsNeverMove) {
   EXPECT_EQ(scene->body(floor).positions(), before);
 }
 
+// What a running node may change (its reconfiguration): friction, a dynamic object's
+// material, a tracked object's contact stiffness; other kinds and bad values are refused.
+TEST(Scene, FrictionAndMaterialsChangeBetweenCyclesAndBadValuesAreRefused) {
+  auto scene = makeDemoScene(DemoScene::kGripper, 3000);
+  const std::size_t fruit = *scene->findObject("fruit");
+  const std::size_t floor = *scene->findObject("floor");
+  scene->setFriction(0.9);
+  EXPECT_EQ(scene->config().friction, 0.9);
+  EXPECT_THROW(scene->setFriction(-0.1), std::invalid_argument);
+  EXPECT_THROW(scene->setFriction(std::nan("")), std::invalid_argument);
+  EXPECT_EQ(scene->config().friction, 0.9);
+  scene->setMaterial(fruit, 0.7, 0.2);
+  EXPECT_EQ(scene->body(fruit).config().stiffness, 0.7);
+  EXPECT_EQ(scene->body(fruit).config().damping, 0.2);
+  EXPECT_EQ(scene->objectConfig(fruit).shape.stiffness, 0.7);
+  EXPECT_THROW(scene->setMaterial(fruit, 1.5, 0.2), std::invalid_argument);
+  EXPECT_EQ(scene->body(fruit).config().stiffness, 0.7) << "a refused change keeps the old";
+  EXPECT_THROW(scene->setMaterial(floor, 0.5, 0.1), std::invalid_argument);
+  EXPECT_THROW(scene->setMaterial(99, 0.5, 0.1), std::out_of_range);
+  EXPECT_THROW(scene->setContactStiffness(fruit, 100.0), std::invalid_argument)
+      << "the fruit is dynamic, not tracked";
+  for (int cycle = 0; cycle < 20; ++cycle) scene->cycle();
+  EXPECT_TRUE(allFinite(*scene));
+}
+
 TEST(Scene, LevelSwitchesBetweenCyclesAndQueriesLeaveItAlone) {
   auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
   for (int cycle = 0; cycle < 40; ++cycle) scene->cycle();  // the objects are on the floor

@@ -564,6 +564,17 @@ TEST(NodeConfig, DistancePairsNameTwoObjectsWithTheirMaximumAndLevel) {
   EXPECT_TRUE(parseWithoutWarnings(validParams()).distance_pairs.empty());
 }
 
+// What the reconfigure servers leave under ~reconfigure is theirs: a restarted node starts
+// from the config again.
+TEST(NodeConfig, TheReconfigureServersNamespaceIsLeftAlone) {
+  XmlRpcValue params = validParams();
+  params["reconfigure"]["friction"] = 0.9;
+  params["reconfigure"]["objects"]["fruit"]["stiffness"] = 0.1;
+  const NodeConfig config = parseWithoutWarnings(params);
+  EXPECT_EQ(config.scene.friction, parseWithoutWarnings(validParams()).scene.friction);
+  EXPECT_EQ(config.objects[1].object.shape.stiffness, 0.8);
+}
+
 TEST(NodeConfig, BadDistancePairsAreRefusedNamingTheKey) {
   const auto pair = [](const char* a, const char* b) {
     XmlRpcValue value;

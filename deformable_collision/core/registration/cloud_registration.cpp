@@ -508,6 +508,14 @@ CloudRegistration::CloudRegistration(const RegistrationConfig& config) : config_
 }
 
 CloudRegistration::~CloudRegistration() = default;
+
+void CloudRegistration::setWorkPerCloud(int iterations, std::size_t max_cloud_points) {
+  RegistrationConfig changed = config_;
+  changed.iterations = iterations;
+  changed.max_cloud_points = max_cloud_points;
+  validateRegistrationConfig(changed);
+  config_ = changed;
+}
 CloudRegistration::CloudRegistration(CloudRegistration&&) noexcept = default;
 CloudRegistration& CloudRegistration::operator=(CloudRegistration&&) noexcept = default;
 

@@ -90,6 +90,9 @@ class CloudRegistration {
                                    CloudPointFilter* filter = nullptr);
 
   const RegistrationConfig& config() const { return config_; }
+  /// Changes the work per cloud from the next cloud on: rounds, and the cloud thinned to.
+  /// @throw std::invalid_argument unless both are >= 1; nothing changes then.
+  void setWorkPerCloud(int iterations, std::size_t max_cloud_points);
 
  private:
   struct Workspace;

@@ -34,6 +34,12 @@ class RegistrationFitter {
   RegistrationReport fit(std::vector<Eigen::Vector3d>& points_m,
                          const std::optional<Eigen::Vector3d>& viewpoint_m, TrackedFit& fit);
 
+  /// From the next cloud on: `iterations` rounds on the cloud thinned to `max_cloud_points`.
+  /// @throw std::invalid_argument unless both are >= 1; nothing changes then.
+  void setWorkPerCloud(int iterations, std::size_t max_cloud_points) {
+    registration_.setWorkPerCloud(iterations, max_cloud_points);
+  }
+
  private:
   friend class Scene;
   RegistrationFitter(const ShapeMatchingBody& body, std::uint64_t rest_shape,

@@ -241,12 +241,7 @@ void Scene::observeFitted(std::size_t object, std::vector<Eigen::Vector3d>& poin
 }
 
 Scene::Object& Scene::trackedObject(std::size_t object) {
-  Object& o = *objects_.at(object);
-  if (o.config.kind != ObjectKind::kTracked) {
-    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
-                                ", only tracked objects take observations");
-  }
-  return o;
+  return objectOfKind(object, ObjectKind::kTracked, "observations to take");
 }
 
 void Scene::cycle() {
@@ -364,6 +359,43 @@ void Scene::setTimeStep(double dt_s) {
                                 " must be in (0, 0.1]");
   }
   config_.dt_s = dt_s;
+}
+
+void Scene::setFriction(double friction) {
+  if (!(friction >= 0.0) || !std::isfinite(friction)) {
+    throw std::invalid_argument("friction = " + std::to_string(friction) +
+                                " must be finite and >= 0");
+  }
+  config_.friction = friction;
+}
+
+Scene::Object& Scene::objectOfKind(std::size_t object, ObjectKind kind, const char* what) {
+  if (object >= objects_.size()) {
+    throw std::out_of_range("object " + std::to_string(object) + " is outside [0, " +
+                            std::to_string(objects_.size()) + ")");
+  }
+  Object& o = *objects_[object];
+  if (o.config.kind != kind) {
+    throw std::invalid_argument("object '" + o.config.name + "' is " + toString(o.config.kind) +
+                                ": only a " + toString(kind) + " one has " + what);
+  }
+  return o;
+}
+
+void Scene::setMaterial(std::size_t object, double stiffness, double damping) {
+  Object& o = objectOfKind(object, ObjectKind::kDynamic, "a stiffness and damping to change");
+  o.body.setMaterial(stiffness, damping);
+  o.config.shape.stiffness = stiffness;
+  o.config.shape.damping = damping;
+}
+
+void Scene::setContactStiffness(std::size_t object, double n_per_m) {
+  Object& o = objectOfKind(object, ObjectKind::kTracked, "a contact stiffness");
+  if (!(n_per_m >= 0.0) || !std::isfinite(n_per_m)) {
+    throw std::invalid_argument("object '" + o.config.name + "': contact_stiffness_n_per_m = " +
+                                std::to_string(n_per_m) + " must be finite and >= 0");
+  }
+  o.config.contact_stiffness_n_per_m = n_per_m;
 }
 
 int Scene::level() const {

@@ -273,6 +273,17 @@ class Scene {
   /// Changes the step of the next cycles (a node whose clouds' stamps time its cycles).
   /// @throw std::invalid_argument unless dt_s is in (0, 0.1].
   void setTimeStep(double dt_s);
+  /// Changes the Coulomb friction of the next cycles' response.
+  /// @throw std::invalid_argument unless finite and >= 0.
+  void setFriction(double friction);
+  /// Changes a dynamic object's stiffness (alpha) and damping from its next step.
+  /// @throw std::out_of_range for a bad index; std::invalid_argument if the object is not
+  /// dynamic or a value is outside [0, 1].
+  void setMaterial(std::size_t object, double stiffness, double damping);
+  /// Changes a tracked object's contact stiffness (N/m of indentation) from the next cycle.
+  /// @throw std::out_of_range for a bad index; std::invalid_argument if the object is not
+  /// tracked or the value is not finite and >= 0.
+  void setContactStiffness(std::size_t object, double n_per_m);
   /// The level of the next cycle: the configured one, maxLevel() for "finest", or the one
   /// the cycle budget picked.
   int level() const;
@@ -334,6 +345,9 @@ class Scene {
   /// @throw std::out_of_range if there is no such object, std::invalid_argument if it is
   /// not tracked.
   Object& trackedObject(std::size_t object);
+  /// Object `object` if it is of `kind`; the error says it lacks `what` otherwise.
+  /// @throw std::out_of_range for a bad index, std::invalid_argument for another kind.
+  Object& objectOfKind(std::size_t object, ObjectKind kind, const char* what);
   void refreshStaleTrees();
 
   /// Appends the points of `object` within `radius_m` of `center_m` to `points_m`.

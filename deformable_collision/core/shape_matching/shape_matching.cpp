@@ -409,4 +409,13 @@ void ShapeMatchingBody::registerPositions(const std::vector<Eigen::Vector3d>* ob
   detail::measureFitResiduals<Mode>(rest_->clusters, positions_, vector_width_, deformations_);
 }
 
+void ShapeMatchingBody::setMaterial(double stiffness, double damping) {
+  for (const auto& [name, value] : {std::pair{"stiffness", stiffness}, {"damping", damping}}) {
+    if (!(value >= 0.0 && value <= 1.0))
+      throw std::invalid_argument(describe(name, value, "is outside [0, 1]"));
+  }
+  config_.stiffness = stiffness;
+  config_.damping = damping;
+}
+
 }  // namespace deformable_collision

@@ -204,6 +204,9 @@ class ShapeMatchingBody {
   /// per-cluster outputs are refreshed by registering the new positions, as track() does.
   /// @throw std::invalid_argument if the size differs or a point is not finite.
   void setPositions(const std::vector<Eigen::Vector3d>& positions);
+  /// Changes the stiffness (alpha) and damping of the next steps.
+  /// @throw std::invalid_argument unless both are in [0, 1]; nothing changes then.
+  void setMaterial(double stiffness, double damping);
 
   /// Sets every point's velocity (an initial condition).
   /// @throw std::invalid_argument if the size differs or a velocity is not finite.
