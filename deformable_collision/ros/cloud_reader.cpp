@@ -33,7 +33,8 @@ CloudReader::CloudReader(const NodeConfig& config, std::vector<ObjectSlot>& slot
       started_(Clock::now()),
       readers_(slots.size()),
       registration_iterations_(config.scene.registration.iterations),
-      registration_max_cloud_points_(config.scene.registration.max_cloud_points) {}
+      registration_max_cloud_points_(config.scene.registration.max_cloud_points),
+      registration_contact_distance_m_(config.scene.contact_distance_m) {}
 
 void CloudReader::onCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t index) {
   const auto start = Clock::now();
@@ -357,6 +358,11 @@ void CloudReader::registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadClou
     reader.registration->setWorkPerCloud(iterations, max_cloud_points);
     reader.iterations = iterations;
     reader.max_cloud_points = max_cloud_points;
+  }
+  const double contact_distance_m = registration_contact_distance_m_;
+  if (contact_distance_m != reader.contact_distance_m) {
+    reader.registration->setContactDistance(contact_distance_m);
+    reader.contact_distance_m = contact_distance_m;
   }
   if (slot.near_points.take(reader.near_points))
     reader.registration->setPointsNearObject(reader.near_points);

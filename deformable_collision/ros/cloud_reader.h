@@ -46,11 +46,14 @@ class CloudReader {
   /// Tries the clouds that wait for their transform, in order; drops those that waited
   /// too long, and all of them when ROS time went back (the retry timer's callback).
   void retryAwaitingClouds();
-  /// The work per registered cloud from each registered object's next cloud on (a
-  /// reconfiguration). Either thread; values already checked (>= 1).
-  void setRegistrationWork(int iterations, std::size_t max_cloud_points) {
+  /// The work per registered cloud and the distance to other objects' points within which
+  /// cloud points are left out, from each registered object's next cloud on (a
+  /// reconfiguration). Either thread; values already checked (>= 1, > 0).
+  void setRegistrationTuning(int iterations, std::size_t max_cloud_points,
+                             double contact_distance_m) {
     registration_iterations_ = iterations;
     registration_max_cloud_points_ = max_cloud_points;
+    registration_contact_distance_m_ = contact_distance_m;
   }
   /// Counts a dropped cloud and says why, at most once per 5 s per object. Either thread.
   void dropCloud(ObjectSlot& slot, ros::console::levels::Level level, const std::string& problem);
@@ -84,9 +87,10 @@ class CloudReader {
     /// and the other objects' points near it, as the cycle last gave them.
     std::optional<RegistrationFitter> registration;
     std::vector<Eigen::Vector3d> near_points;
-    /// The work per cloud `registration` was last given.
+    /// The tuning `registration` was last given.
     int iterations = 0;
     std::size_t max_cloud_points = 0;
+    double contact_distance_m = 0.0;
   };
   enum class CloudOutcome { kApplied, kRejected, kAwaitingTransform };
   enum class TransformOutcome { kDone, kRefused, kNotYet, kMissing };
@@ -166,6 +170,7 @@ class CloudReader {
   std::atomic<std::uint64_t> busy_ns_{0};
   std::atomic<int> registration_iterations_;
   std::atomic<std::size_t> registration_max_cloud_points_;
+  std::atomic<double> registration_contact_distance_m_;
 };
 
 }  // namespace deformable_collision

@@ -297,12 +297,13 @@ void DeformableCollisionNode::warnIfPorous(const std::string& name,
   // Against a dense cloud a sparse one still shows contacts; two clouds sparser than this
   // can cross without a single pair of points coming within the contact distance.
   const double spacing = typicalPointSpacing(points);
-  if (spacing > 2.0 * config_.scene.contact_distance_m) {
+  const double contact_distance_m = scene_.config().contact_distance_m;
+  if (spacing > 2.0 * contact_distance_m) {
     ROS_WARN(
         "object '%s': its points are about %.4f m apart, more than twice "
         "contact_distance_m = %.4f m, so clouds as sparse can pass between them; raise "
         "contact_distance_m towards the spacing",
-        name.c_str(), spacing, config_.scene.contact_distance_m);
+        name.c_str(), spacing, contact_distance_m);
   }
 }
 

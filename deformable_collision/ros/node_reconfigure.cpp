@@ -52,6 +52,7 @@ DeformableCollisionConfig NodeReconfigure::initialNodeConfig() const {
   initial.level = scene.cycle_budget_ms ? -1 : scene.level;
   initial.level_auto = scene.cycle_budget_ms.has_value();
   initial.cycle_budget_ms = scene.cycle_budget_ms.value_or(0.0);
+  initial.contact_distance_m = scene.contact_distance_m;
   initial.friction = scene.friction;
   initial.markers_colliding_only = config_.markers_colliding_only;
   initial.force_marker_scale_m_per_n = config_.force_marker_scale_m_per_n;
@@ -113,11 +114,14 @@ void NodeReconfigure::applyNode(const DeformableCollisionConfig& requested) {
   } else if (current.level_auto || requested.level != current.level) {
     scene_.setLevel(requested.level);
   }
+  if (requested.contact_distance_m != current.contact_distance_m)
+    scene_.setContactDistance(requested.contact_distance_m);
   scene_.setFriction(requested.friction);
   config_.markers_colliding_only = requested.markers_colliding_only;
   config_.force_marker_scale_m_per_n = requested.force_marker_scale_m_per_n;
-  reader_.setRegistrationWork(requested.register_iterations,
-                              static_cast<std::size_t>(requested.register_max_cloud_points));
+  reader_.setRegistrationTuning(requested.register_iterations,
+                                static_cast<std::size_t>(requested.register_max_cloud_points),
+                                requested.contact_distance_m);
 }
 
 void NodeReconfigure::onObject(std::size_t index, ObjectMaterialConfig& requested,

@@ -102,6 +102,27 @@ TEST(Scene, FrictionAndMaterialsChangeBetweenCyclesAndBadValuesAreRefused) {
   EXPECT_TRUE(allFinite(*scene));
 }
 
+// A larger contact distance finds the contacts of two objects that did not move since the
+// last cycle, which would otherwise keep that cycle's (none).
+TEST(Scene, AContactDistanceChangeQueriesEveryPairAgain) {
+  auto scene = sceneOnFloor(-1);
+  ObjectConfig block;
+  block.name = "block";
+  block.kind = ObjectKind::kKinematic;
+  // Three layers, the lowest 4 cm above the floor's top.
+  scene->addObject(block, gridLayers(5, 3, 0.02));
+  scene->setPose(1, Eigen::Isometry3d(Eigen::Translation3d(0.0, 0.0, 0.08)));
+  scene->cycle();
+  scene->cycle();
+  EXPECT_TRUE(scene->contacts().empty());
+  EXPECT_THROW(scene->setContactDistance(0.0), std::invalid_argument);
+  EXPECT_THROW(scene->setContactDistance(std::nan("")), std::invalid_argument);
+  scene->setContactDistance(0.05);
+  scene->cycle();
+  EXPECT_FALSE(scene->contacts().empty());
+  EXPECT_EQ(scene->config().contact_distance_m, 0.05);
+}
+
 TEST(Scene, LevelSwitchesBetweenCyclesAndQueriesLeaveItAlone) {
   auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
   for (int cycle = 0; cycle < 40; ++cycle) scene->cycle();  // the objects are on the floor

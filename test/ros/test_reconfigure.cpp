@@ -1,7 +1,8 @@
 // dynamic_reconfigure of a running node (rostest reconfigure.test), through the servers'
 // set_parameters services as rqt_reconfigure calls them: each change is answered with the
-// values in force, takes effect in the next cycles (a level in ~stats, forces that a contact
-// stiffness makes), a refused one keeps the old values, and ~stats counts both. Every wait
+// values in force, takes effect in the next cycles (a level in ~stats, a contact when the
+// distance grows, forces that a contact stiffness makes), a refused one keeps the old values,
+// and ~stats counts both. Every wait
 // has a timeout.
 #include <dynamic_reconfigure/Reconfigure.h>
 #include <gtest/gtest.h>
@@ -47,9 +48,9 @@ class ReconfigureTest : public ::testing::Test {
     probe_ = handle_.advertise<sensor_msgs::PointCloud2>("/reconfigure/probe", 1, true);
     ball_ = handle_.advertise<sensor_msgs::PointCloud2>("/reconfigure/ball", 1, true);
     floor_.publish(cloudOf(grid(21, 21, 2, 0.02, {0.0, 0.0, -0.01}), "world"));
-    // A 10 cm cube 1 cm into the floor; a ball far from both.
+    // A 10 cm cube 1 cm into the floor; a block 4 cm above the floor beside it.
     probe_.publish(cloudOf(grid(6, 6, 6, 0.02, {0.0, 0.0, 0.04}), "world"));
-    ball_.publish(cloudOf(grid(5, 5, 5, 0.02, {1.0, 1.0, 0.5}), "world"));
+    ball_.publish(cloudOf(grid(5, 5, 3, 0.02, {0.12, 0.12, 0.06}), "world"));
     contacts_ = handle_.subscribe<ContactArray>(
         "/deformable_collision/contacts", 10,
         boost::function<void(const ContactArray::ConstPtr&)>(
@@ -88,6 +89,14 @@ class ReconfigureTest : public ::testing::Test {
     return Value{};
   }
 
+  /// Whether the last ~contacts has one of `object`'s.
+  bool touches(const std::string& object) const {
+    for (const Contact& c : last_contacts_->contacts) {
+      if (c.object_a == object || c.object_b == object) return true;
+    }
+    return false;
+  }
+
   /// The largest contact force on the probe, in the last ~contacts.
   double largestProbeForce() const {
     double largest = 0.0;
@@ -109,6 +118,13 @@ TEST_F(ReconfigureTest, EveryParameterChangesWhileRunningAndBadValuesAreRefused)
   const std::uint32_t accepted = last_stats_->reconfigurations_accepted;
   const std::uint32_t refused = last_stats_->reconfigurations_refused;
 
+  // At the finest level, the block 4 cm above the floor touches it once the contact
+  // distance is more.
+  EXPECT_TRUE(waitFor([&] { return !touches("ball"); }, 2.0)) << "4 cm apart, 2 cm reach";
+  EXPECT_EQ(
+      valueOf<double>(set(kServer, oneParameter("contact_distance_m", 0.06)), "contact_distance_m"),
+      0.06);
+  EXPECT_TRUE(waitFor([&] { return touches("ball"); })) << "a contact at the new distance";
   // The level: taken by the next cycles; beyond the trees, refused.
   EXPECT_EQ(valueOf<int>(set(kServer, oneParameter("level", 1)), "level"), 1);
   EXPECT_TRUE(waitFor([&] { return last_stats_->level == 1; })) << "the cycles at level 1";
@@ -148,7 +164,7 @@ TEST_F(ReconfigureTest, EveryParameterChangesWhileRunningAndBadValuesAreRefused)
   EXPECT_FALSE(ros::service::exists(kServer + "/objects/floor/set_parameters", false));
 
   EXPECT_TRUE(waitFor([&] {
-    return last_stats_->reconfigurations_accepted == accepted + 10 &&
+    return last_stats_->reconfigurations_accepted == accepted + 11 &&
            last_stats_->reconfigurations_refused == refused + 3;
   })) << last_stats_->reconfigurations_accepted - accepted
       << " accepted, " << last_stats_->reconfigurations_refused - refused << " refused";

@@ -48,8 +48,13 @@ const std::vector<BroadPhase::Pair>& Scene::sweepAndPrune() {
   return broad_phase_.sweep(objects_.size(), [&](std::uint32_t index) {
     Object& o = *objects_[index];
     const bool is_static = o.config.kind == ObjectKind::kStatic;
-    // Static objects keep their points' box, set when they were made.
-    if (!is_static) {
+    // Static objects keep their points' box, set when they were made; the margin is the
+    // contact distance in force.
+    if (is_static) {
+      o.sweep_box = o.points_box;
+      o.sweep_box.min().array() -= margin;
+      o.sweep_box.max().array() += margin;
+    } else {
       const Sphere& root = o.tree.sphere(0);
       const Eigen::Vector3d reach = Eigen::Vector3d::Constant(root.radius + margin);
       o.sweep_box = Eigen::AlignedBox3d(root.center - reach, root.center + reach);

@@ -1,5 +1,9 @@
 #include "deformable_collision/core/scene/registration_fitter.h"
 
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
 namespace deformable_collision {
 
 RegistrationFitter::RegistrationFitter(const ShapeMatchingBody& body, std::uint64_t rest_shape,
@@ -25,6 +29,14 @@ RegistrationReport RegistrationFitter::fit(std::vector<Eigen::Vector3d>& points_
   body_.giveTrackedState(points_m, fit.state);
   fit.rest_shape = rest_shape_;
   return report;
+}
+
+void RegistrationFitter::setContactDistance(double contact_distance_m) {
+  if (!(contact_distance_m > 0.0) || !std::isfinite(contact_distance_m)) {
+    throw std::invalid_argument("contact_distance_m = " + std::to_string(contact_distance_m) +
+                                " must be finite and > 0");
+  }
+  contact_distance_m_ = contact_distance_m;
 }
 
 }  // namespace deformable_collision

@@ -39,6 +39,10 @@ class RegistrationFitter {
   void setWorkPerCloud(int iterations, std::size_t max_cloud_points) {
     registration_.setWorkPerCloud(iterations, max_cloud_points);
   }
+  /// Cloud points this close to the points near the object are left out, from the next
+  /// points near the object on (the scene's contact distance, Scene::setContactDistance).
+  /// @throw std::invalid_argument unless finite and > 0.
+  void setContactDistance(double contact_distance_m);
 
  private:
   friend class Scene;

@@ -38,7 +38,10 @@ SceneObject::SceneObject(const ObjectConfig& object_config,
 }  // namespace detail
 
 Scene::Scene(const SceneConfig& config)
-    : config_(config), response_(objects_, contacts_, contact_runs_, config_), forces_(objects_) {
+    : config_(config),
+      planes_gap_m_(config.contact_distance_m),
+      response_(objects_, contacts_, contact_runs_, config_),
+      forces_(objects_) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
   std::ostringstream value;
   if (!config.gravity_mps2.allFinite()) fail("SceneConfig.gravity_mps2 is not finite");
@@ -170,12 +173,12 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
   // pass for another scene's either. Objects are prepared on several threads.
   static std::atomic<std::uint64_t> rest_shapes_made{0};
   made->rest_shape = ++rest_shapes_made;
-  if (!made->dynamic()) made->planes.compute(made->body, made->tree, config_.contact_distance_m);
+  // The planes' gap is the contact distance the scene was made with: this runs on the
+  // node's reader thread, apart from setContactDistance().
+  if (!made->dynamic()) made->planes.compute(made->body, made->tree, planes_gap_m_);
   if (config.kind == ObjectKind::kStatic) {
     // A wall's root sphere spans the room; its points' box is what it really covers.
-    for (const auto& point : made->body.positions()) made->sweep_box.extend(point);
-    made->sweep_box.min().array() -= 0.5 * config_.contact_distance_m;
-    made->sweep_box.max().array() += 0.5 * config_.contact_distance_m;
+    for (const auto& point : made->body.positions()) made->points_box.extend(point);
     made->slabs.compute(made->tree, made->body.positions());
   }
   if (config.kind == ObjectKind::kKinematic) {
@@ -380,6 +383,16 @@ Scene::Object& Scene::objectOfKind(std::size_t object, ObjectKind kind, const ch
                                 ": only a " + toString(kind) + " one has " + what);
   }
   return o;
+}
+
+void Scene::setContactDistance(double contact_distance_m) {
+  if (!(contact_distance_m > 0.0) || !std::isfinite(contact_distance_m)) {
+    throw std::invalid_argument("contact_distance_m = " + std::to_string(contact_distance_m) +
+                                " must be finite and > 0");
+  }
+  config_.contact_distance_m = contact_distance_m;
+  // Pairs that did not move would keep the contacts of the old distance.
+  previous_level_.reset();
 }
 
 void Scene::setMaterial(std::size_t object, double stiffness, double damping) {

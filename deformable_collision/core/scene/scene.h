@@ -276,6 +276,11 @@ class Scene {
   /// Changes the Coulomb friction of the next cycles' response.
   /// @throw std::invalid_argument unless finite and >= 0.
   void setFriction(double friction);
+  /// Changes the contact distance of the next detections, responses and queries; the next
+  /// cycle queries every pair again. Fixed objects' planes keep the gap of the contact
+  /// distance the scene was made with (docs/design.md, "Response").
+  /// @throw std::invalid_argument unless finite and > 0.
+  void setContactDistance(double contact_distance_m);
   /// Changes a dynamic object's stiffness (alpha) and damping from its next step.
   /// @throw std::out_of_range for a bad index; std::invalid_argument if the object is not
   /// dynamic or a value is outside [0, 1].
@@ -378,6 +383,9 @@ class Scene {
   void restartTree(Object& object);
 
   SceneConfig config_;
+  /// The contact distance at construction: the gap of fixed objects' planes, which
+  /// prepareObject() builds on another thread than setContactDistance() runs on.
+  const double planes_gap_m_;
   std::vector<std::unique_ptr<Object>> objects_;
   BroadPhase broad_phase_;
   HierarchyQuery query_;

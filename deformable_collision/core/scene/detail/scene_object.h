@@ -37,8 +37,9 @@ struct SceneObject {
   /// (TrackedFit::rest_shape) is taken only by the rest shape it was fitted to.
   std::uint64_t rest_shape = 0;
   /// Box around the object's points, grown by half the contact distance, for the broad
-  /// phase: around the root sphere, or, for a static object, its points' own box once.
+  /// phase: around the root sphere, or, for a static object, around points_box.
   Eigen::AlignedBox3d sweep_box;
+  Eigen::AlignedBox3d points_box;             ///< Static objects: their points' box, set when made.
   std::vector<Eigen::Vector3d> posed_points;  ///< Kinematic objects: the rest shape posed.
 
   FixedPlanes planes;  ///< Objects the response never moves.
