@@ -15,33 +15,6 @@ bool hasMaterial(ObjectKind kind) {
 
 }  // namespace
 
-std::string nodeReconfigureProblem(const DeformableCollisionConfig& requested, int max_level) {
-  std::ostringstream problem;
-  if (requested.level_auto && !(requested.cycle_budget_ms > 0.0)) {
-    problem << "level_auto needs cycle_budget_ms > 0";
-  } else if (!requested.level_auto && requested.level > max_level) {
-    problem << "level = " << requested.level << " is beyond the deepest tree's " << max_level
-            << " (-1: the finest)";
-  }
-  return problem.str();
-}
-
-std::string objectReconfigureProblem(const ObjectMaterialConfig& requested,
-                                     const ObjectMaterialConfig& current, ObjectKind kind) {
-  const bool material_changed =
-      requested.stiffness != current.stiffness || requested.damping != current.damping;
-  if (material_changed && kind != ObjectKind::kDynamic) {
-    return "stiffness and damping are a dynamic object's; this one is " +
-           std::string(toString(kind));
-  }
-  if (requested.contact_stiffness_n_per_m != current.contact_stiffness_n_per_m &&
-      kind != ObjectKind::kTracked) {
-    return "contact_stiffness_n_per_m is a tracked object's; this one is " +
-           std::string(toString(kind));
-  }
-  return "";
-}
-
 NodeReconfigure::NodeReconfigure(Scene& scene, NodeConfig& config, std::vector<ObjectSlot>& slots,
                                  CloudReader& reader)
     : scene_(scene), config_(config), slots_(slots), reader_(reader) {}
@@ -107,16 +80,7 @@ void NodeReconfigure::onNode(DeformableCollisionConfig& requested, std::uint32_t
 }
 
 void NodeReconfigure::applyNode(const DeformableCollisionConfig& requested) {
-  const DeformableCollisionConfig& current = node_current_;
-  if (requested.level_auto) {
-    if (!current.level_auto || requested.cycle_budget_ms != current.cycle_budget_ms)
-      scene_.setCycleBudget(requested.cycle_budget_ms);
-  } else if (current.level_auto || requested.level != current.level) {
-    scene_.setLevel(requested.level);
-  }
-  if (requested.contact_distance_m != current.contact_distance_m)
-    scene_.setContactDistance(requested.contact_distance_m);
-  scene_.setFriction(requested.friction);
+  applyToScene(scene_, requested, node_current_);
   config_.markers_colliding_only = requested.markers_colliding_only;
   config_.force_marker_scale_m_per_n = requested.force_marker_scale_m_per_n;
   reader_.setRegistrationTuning(requested.register_iterations,
@@ -143,12 +107,7 @@ void NodeReconfigure::onObject(std::size_t index, ObjectMaterialConfig& requeste
 void NodeReconfigure::reapply(const ObjectSlot& slot) {
   const std::size_t index = static_cast<std::size_t>(&slot - slots_.data());
   if (!slot.index || index >= object_servers_.size() || !object_servers_[index].server) return;
-  const ObjectMaterialConfig& material = object_servers_[index].current;
-  if (slot.params.object.kind == ObjectKind::kDynamic) {
-    scene_.setMaterial(*slot.index, material.stiffness, material.damping);
-  } else {
-    scene_.setContactStiffness(*slot.index, material.contact_stiffness_n_per_m);
-  }
+  applyMaterial(scene_, *slot.index, slot.params.object.kind, object_servers_[index].current);
 }
 
 void NodeReconfigure::count(bool accepted, const std::string& what, const std::string& problem) {

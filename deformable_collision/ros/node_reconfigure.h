@@ -16,19 +16,9 @@
 #include "deformable_collision/ros/cloud_reader.h"
 #include "deformable_collision/ros/node_config.h"
 #include "deformable_collision/ros/object_slot.h"
+#include "deformable_collision/ros/reconfigure_checks.h"
 
 namespace deformable_collision {
-
-/// Why a reconfiguration of the node cannot be taken on a scene of `max_level`, or empty:
-/// a fixed level beyond the deepest tree, or level_auto without a budget. The servers clamp
-/// each value to the .cfg's range first.
-std::string nodeReconfigureProblem(const DeformableCollisionConfig& requested, int max_level);
-
-/// Why a reconfiguration of an object of `kind` cannot be taken, or empty: stiffness and
-/// damping are a dynamic object's, contact stiffness a tracked one's; the others must keep
-/// their values (`current`).
-std::string objectReconfigureProblem(const ObjectMaterialConfig& requested,
-                                     const ObjectMaterialConfig& current, ObjectKind kind);
 
 /// dynamic_reconfigure for what can change while the node runs: ~reconfigure (level or
 /// budget, friction, markers, registration work per cloud) and ~reconfigure/objects/<name>

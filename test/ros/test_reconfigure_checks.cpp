@@ -1,6 +1,6 @@
-// The checks of a reconfiguration (node_reconfigure.h), case by case; what a running node
-// does with one is reconfigure.test's.
-#include "deformable_collision/ros/node_reconfigure.h"
+// The checks of a reconfiguration (reconfigure_checks.h), case by case; what a running node
+// does with one is reconfigure.test's, and any sequence of them fuzz_reconfigure's.
+#include "deformable_collision/ros/reconfigure_checks.h"
 
 #include <gtest/gtest.h>
 
