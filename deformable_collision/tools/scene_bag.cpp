@@ -2,9 +2,10 @@
 // /scene/<object>/points, the soft and static ones seen from a camera frame that circles the
 // scene, and on /tf that frame and the kinematic objects' frames, five times per cloud. The
 // scene is simulated, so the clouds show its objects deforming. tf may be recorded late, as
-// a slow tf publisher's comes after the data it places. `rosbag play --clock` gives it to
-// the node (launch/demo.launch's objects) without a camera; the bag test replays it.
-// Usage: scene_bag OUTPUT.bag [scene=gripper] [duration_s=4] [rate_hz=10 (clouds per second)]
+// a slow tf publisher's comes after the data it places, and goes on 1 s after the last cloud.
+// `rosbag play --clock` gives it to the node (launch/demo.launch's objects) without a camera; the
+// bag test replays it. Usage: scene_bag OUTPUT.bag [scene=gripper] [duration_s=4] [rate_hz=10
+// (clouds per second)]
 //        [points=0 (the scene's default)] [tf_lag_s=0 (tf recorded this late)]
 #include <ros/time.h>
 #include <rosbag/bag.h>
@@ -24,6 +25,8 @@ namespace {
 /// The bag's clock starts here, as a recording's would start at its wall time.
 constexpr double kStartS = 1000.0;
 constexpr int kFramesPerCloud = 5;
+/// tf goes on this long after the last cloud.
+constexpr double kTailS = 1.0;
 constexpr const char* kCameraFrame = "camera";
 
 struct BagParams {
@@ -81,13 +84,16 @@ void writeBag(const BagParams& params) {
   const std::vector<bool> every(scene->objectCount(), true);
   const std::vector<bool> none(scene->objectCount(), false);
   const int steps = static_cast<int>(std::lround(params.duration_s / config.dt_s));
-  for (int step = 0; step < steps; ++step) {
+  // As a recording stopped by hand, it goes on for a while after the last cloud (tf only):
+  // a bag played in a loop then starts again after the node has done with that cloud.
+  const int tail_steps = static_cast<int>(std::lround(kTailS / config.dt_s));
+  for (int step = 0; step < steps + tail_steps; ++step) {
     const double time_s = step * config.dt_s;
     const ros::Time stamp(kStartS + time_s);
     dc::driveDemoScene(params.scene, *scene, time_s);
     scene->cycle();
     frames.cloud_frame_pose = cameraPose(time_s);
-    const bool clouds = step % kFramesPerCloud == 0;
+    const bool clouds = step < steps && step % kFramesPerCloud == 0;
     dc::makeSceneMessages(params.scene, *scene, time_s, stamp, frames, clouds ? every : none,
                           messages);
     // Without a lag, the frames first: as a recording's tf that comes with its data.
