@@ -1,7 +1,5 @@
 #include "deformable_collision/ros/node_reconfigure.h"
 
-#include <sstream>
-
 namespace deformable_collision {
 namespace {
 
