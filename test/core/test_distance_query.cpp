@@ -8,7 +8,9 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "deformable_collision/core/scene/scene.h"
@@ -149,6 +151,58 @@ TEST(DistanceQuery, RefusesBadArguments) {
   EXPECT_THROW(scene->closestPoints(0, 1, -1, 1.0), std::out_of_range);
   EXPECT_THROW(scene->closestPoints(0, 1, 0, -1.0), std::invalid_argument);
   EXPECT_THROW(scene->closestPoints(0, 1, 0, std::nan("")), std::invalid_argument);
+}
+
+/// Two randomly deformed bodies from `seed` (a random mode and stiffness, noise and a bend,
+/// then steps), `gap_m` apart before the deformation: overlapping when negative.
+std::pair<ShapeMatchingBody, ShapeMatchingBody> randomBodies(std::uint64_t seed, double gap_m) {
+  std::mt19937_64 engine(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  ShapeMatchingConfig config;
+  config.mode = static_cast<DeformationMode>(seed % 3);
+  config.clusters = 1 + static_cast<int>(seed % 4);
+  config.stiffness = unit(engine);
+  std::pair<ShapeMatchingBody, ShapeMatchingBody> bodies{
+      ShapeMatchingBody(sampleEllipsoid(500, {0.2, 0.15, 0.1}, 2 * seed + 1), config),
+      ShapeMatchingBody(shifted(sampleEllipsoid(400, {0.1, 0.2, 0.15}, 2 * seed + 2),
+                                {0.3 + gap_m, 0.05 * unit(engine), 0.0}),
+                        config)};
+  std::normal_distribution<double> noise(0.0, 0.01);
+  for (ShapeMatchingBody* body : {&bodies.first, &bodies.second}) {
+    Points p = body->restPositions();
+    for (auto& x : p) {
+      x += Eigen::Vector3d(noise(engine), noise(engine), noise(engine) + 0.5 * x.y() * x.y());
+    }
+    body->setPositions(p);
+    for (int s = 0; s < 4; ++s) body->step(0.02, Eigen::Vector3d(0.0, 0.0, -1.0));
+  }
+  return bodies;
+}
+
+// Random deformed pairs, apart, near and overlapping, at every level of their trees.
+TEST(DistanceQuery, RandomDeformedPairsMatchBruteForceAtEveryLevel) {
+  HierarchyDistance distance;
+  for (std::uint64_t seed = 0; seed < 12; ++seed) {
+    const double gap_m = 0.1 * static_cast<double>(seed % 4) - 0.1;
+    auto [body_a, body_b] = randomBodies(seed, gap_m);
+    SphereTree a(body_a, {2, 4});
+    SphereTree b(body_b, {3, 6});
+    a.beginCycle();
+    b.beginCycle();
+    const double truth = bruteForceDistance(body_a.positions(), body_b.positions());
+    const int finest = std::max(a.maxLevel(), b.maxLevel());
+    for (int level = 0; level <= finest; ++level) {
+      QueryCounters counters;
+      const auto closest = distance.closest(a, b, level, 10.0, counters);
+      const std::string where = "seed " + std::to_string(seed) + ", level " + std::to_string(level);
+      ASSERT_TRUE(closest) << where;
+      EXPECT_LE(closest->distance_m, truth + 1e-12) << where;
+      EXPECT_GE(closest->distance_m + closest->error_bound_m, truth - 1e-12) << where;
+      if (level == finest) {
+        EXPECT_NEAR(closest->distance_m, truth, 1e-12) << where;
+      }
+    }
+  }
 }
 
 // The finest answer visits a small part of the leaf pairs: the work follows the pairs near
