@@ -70,7 +70,7 @@ std::vector<ShapeCase> shapeCases() {
 /// most just beyond or within reach of its points, where rounding matters. Returns how many
 /// trials the slabs called apart.
 std::size_t checkNeverWronglyApart(const SphereTree& tree, const Points& positions,
-                                   const NodeSlabs& slabs, double scale_m) {
+                                   NodeSlabs& slabs, double scale_m) {
   EXPECT_EQ(slabs.size(), tree.nodeCount());
   std::mt19937_64 engine(11);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
@@ -113,6 +113,36 @@ TEST(NodeSlabs, NeverCallAPairApartThatComesWithinReach) {
     if (shape.name != "coincident") {
       EXPECT_GT(apart, 0u);
     }
+  }
+}
+
+// A static object's slabs are measured when first asked for, in whatever order the queries
+// ask: the same slabs as measured all at once.
+TEST(NodeSlabs, MeasuredOnDemandAsMeasuredAtOnce) {
+  for (const ShapeCase& shape : shapeCases()) {
+    SCOPED_TRACE(shape.name);
+    const ShapeMatchingBody body(shape.points, ShapeMatchingConfig{});
+    const SphereTree tree(body, SphereTreeConfig{2, 8});
+    NodeSlabs at_once;
+    at_once.compute(tree, body.positions());
+    NodeSlabs on_demand;
+    on_demand.measureOnDemand(tree, body.positions());
+    std::mt19937_64 engine(5);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    for (std::uint32_t n = static_cast<std::uint32_t>(tree.nodeCount()); n-- > 0;) {
+      const Eigen::Vector3d& anchor =
+          body.positions()[tree.pointIndices()[tree.node(n).first_point]];
+      for (int trial = 0; trial < 8; ++trial) {
+        const Eigen::Vector3d offset(unit(engine), unit(engine), unit(engine));
+        const Sphere sphere{anchor + shape.scale_m * offset, 0.1 * shape.scale_m};
+        const double distance_m = 0.05 * shape.scale_m * (trial % 3);
+        ASSERT_EQ(on_demand.apart(n, sphere, distance_m), at_once.apart(n, sphere, distance_m))
+            << "node " << n;
+      }
+    }
+    NodeSlabs checked;
+    checked.measureOnDemand(tree, body.positions());
+    checkNeverWronglyApart(tree, body.positions(), checked, shape.scale_m);
   }
 }
 

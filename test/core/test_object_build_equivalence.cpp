@@ -1,8 +1,8 @@
 // What making an object builds, bit for bit as before its construction was made O(n log n):
-// each case's trees (nodes, point order, buckets) and fixed planes (normals and surface extents;
-// the response's internal unit, so its header from detail/) against digests of what the
-// quadratic-time construction (a sort per tree level, each fixed plane's columns read from the
-// whole object) built.
+// each case's trees (nodes, point order, buckets) and fixed planes (normals and surface extents,
+// measured per node on demand in any order; the response's internal unit, so its header from
+// detail/) against digests of what the quadratic-time construction (a sort per tree level,
+// each fixed plane's columns read from the whole object) built.
 #include <gtest/gtest.h>
 
 #include <Eigen/Core>
@@ -42,14 +42,23 @@ void addTree(const SphereTree& tree, Digest& digest) {
   for (const std::uint32_t bucket : tree.buckets()) digest.add(bucket);
 }
 
+/// Every node's plane, asked for in node order. The planes are measured on the first ask: a
+/// second set asked for leaves first, as contacts ask, must give the same bits.
 void addPlanes(const ShapeMatchingBody& body, const SphereTree& tree, double gap_m,
                Digest& digest) {
-  detail::FixedPlanes planes;
-  planes.compute(body, tree, gap_m);
-  for (std::size_t n = 0; n < tree.nodeCount(); ++n) {
-    digest.add(planes.normals[n]);
-    digest.add(planes.extent_along[n]);
-    digest.add(planes.extent_against[n]);
+  detail::FixedPlanes planes(body, tree, gap_m);
+  detail::FixedPlanes asked_backwards(body, tree, gap_m);
+  const auto count = static_cast<std::uint32_t>(tree.nodeCount());
+  for (std::uint32_t n = count; n-- > 0;) asked_backwards.plane(n);
+  for (std::uint32_t n = 0; n < count; ++n) {
+    const detail::FixedPlanes::Plane& plane = planes.plane(n);
+    const detail::FixedPlanes::Plane& backwards = asked_backwards.plane(n);
+    ASSERT_EQ(plane.normal, backwards.normal) << "node " << n;
+    ASSERT_EQ(plane.extent_along, backwards.extent_along) << "node " << n;
+    ASSERT_EQ(plane.extent_against, backwards.extent_against) << "node " << n;
+    digest.add(plane.normal);
+    digest.add(plane.extent_along);
+    digest.add(plane.extent_against);
   }
 }
 

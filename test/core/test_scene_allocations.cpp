@@ -133,6 +133,34 @@ TEST(Scene, SteadyStateCyclesAllocateNothing) {
   EXPECT_GT(gripper.scene->stats().contacts, 0u) << "the jaws must hold the fruit";
 }
 
+// A ball sliding over a static floor reaches new nodes of the floor every cycle, whose slabs
+// and planes are measured then: that allocates nothing either.
+TEST(Scene, SlabsAndPlanesMeasuredInACycleAllocateNothing) {
+  SceneConfig config;
+  config.gravity_mps2 = Eigen::Vector3d(3.0, 0.0, -9.81);
+  config.friction = 0.0;
+  config.contact_distance_m = 0.01;
+  Scene scene(config);
+  ObjectConfig floor;
+  floor.name = "floor";
+  floor.kind = ObjectKind::kStatic;
+  floor.shape.mode = DeformationMode::kRigid;
+  scene.addObject(floor, gridLayers(200, 2, 0.01));
+  ObjectConfig ball;
+  ball.name = "ball";
+  std::vector<Eigen::Vector3d> points = sampleEllipsoid(2000, {0.05, 0.05, 0.05}, 3);
+  for (auto& p : points) p += Eigen::Vector3d(-0.8, 0.0, 0.055);
+  scene.addObject(ball, points);
+  std::size_t touching_cycles = 0;
+  const long made = allocationsAfterWarmUp(40, 80, [&](int) {
+    scene.cycle();
+    touching_cycles += scene.stats().contacts > 0;
+  });
+  EXPECT_EQ(made, 0);
+  EXPECT_GE(touching_cycles, 70u) << "the ball must slide on the floor";
+  EXPECT_GT(scene.body(1).positions()[0].x(), -0.5) << "the ball must have slid";
+}
+
 // A node that applies clouds while its cycle waits detects them then: the detection ahead
 // and the cycle that keeps its contacts allocate nothing either.
 TEST(Scene, SteadyCyclesDetectedAheadAllocateNothing) {

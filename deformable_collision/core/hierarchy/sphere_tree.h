@@ -208,13 +208,16 @@ class SphereTree {
   /// The object's root (if it has several clusters) and one branch per cluster; returns
   /// the first branch's index.
   std::uint32_t addRootAndBranches();
+  /// The buffers the build reuses from node to node (sphere_tree_build.cpp).
+  struct BuildScratch;
   /// Orders the node's slots along the longest axis of its points' rest box: sorted if
   /// `sort_children` (children that are leaves keep the order), else only as far as each of
   /// `children` equal parts holds its own points.
-  void splitAlongLongestAxis(const SphereNode& node, std::uint32_t children, bool sort_children);
+  void splitAlongLongestAxis(const SphereNode& node, std::uint32_t children, bool sort_children,
+                             BuildScratch& scratch);
   Eigen::Index longestAxis(const SphereNode& node) const;
-  /// Slot i of the node takes what was slot order[i] of it.
-  void applyOrder(const SphereNode& node, const std::vector<std::uint32_t>& order);
+  /// Slot i of the node takes what was slot scratch.order[i] of it.
+  void applyOrder(const SphereNode& node, BuildScratch& scratch);
   /// Splits the node's slots into `children` equal parts (at most its point count), one
   /// child each.
   void addChildren(std::uint32_t index, std::uint32_t children);

@@ -129,10 +129,30 @@ SphereTree::SphereTree(const ShapeMatchingBody& body, const SphereTreeConfig& co
   scratch_sphere_.shuffled.reserve(largest_node);
 }
 
+namespace {
+
+/// A slot's place along a split's axis. Ties go by point index: the order is total.
+struct SplitKey {
+  double coordinate;
+  std::uint32_t point;
+  std::uint32_t slot;
+};
+
+}  // namespace
+
+// Kept from node to node: fresh buffers for a large node are fresh pages, each faulted in.
+struct SphereTree::BuildScratch {
+  std::vector<SplitKey> keys;
+  std::vector<std::uint32_t> order;
+  std::vector<std::uint32_t> indices;
+  std::vector<Eigen::Vector3d> points;
+};
+
 void SphereTree::build(const SphereTreeConfig& config) {
   gatherClusterPoints();
   const std::uint32_t first_branch = addRootAndBranches();
   const int branch_level = nodes_[first_branch].level;
+  BuildScratch scratch;
   std::vector<std::vector<std::uint32_t>> cluster_child_counts;
   for (std::size_t k = 0; k < body_->clusterCount(); ++k) {
     cluster_child_counts.push_back(levelChildCounts(nodes_[first_branch + k].point_count,
@@ -150,7 +170,7 @@ void SphereTree::build(const SphereTreeConfig& config) {
     const std::uint32_t children = std::min(child_counts[depth], node.point_count);
     // Splits below reorder the children's points, so only leaves need them sorted: a split
     // is linear in the node's points, a sort n log n.
-    splitAlongLongestAxis(node, children, depth + 1 >= child_counts.size());
+    splitAlongLongestAxis(node, children, depth + 1 >= child_counts.size(), scratch);
     addChildren(index, children);
   }
   for (std::uint32_t i = 0; i < nodes_.size(); ++i) computeRestData(i);
@@ -196,28 +216,33 @@ std::uint32_t SphereTree::addRootAndBranches() {
 }
 
 void SphereTree::splitAlongLongestAxis(const SphereNode& node, std::uint32_t children,
-                                       bool sort_children) {
+                                       bool sort_children, BuildScratch& scratch) {
   const auto begin = static_cast<std::ptrdiff_t>(node.first_point);
   const Eigen::Index axis = longestAxis(node);
-  // Slots move with their points: order a permutation of the range, then apply it. Equal
-  // coordinates are ordered by point index: the order is total, so each child gets the same
-  // points whether the range is sorted or only split at the children's bounds.
-  std::vector<std::uint32_t> order(node.point_count);
-  for (std::uint32_t i = 0; i < node.point_count; ++i) order[i] = i;
-  const auto before = [&](std::uint32_t a, std::uint32_t b) {
-    const double xa = build_points_[begin + a][axis];
-    const double xb = build_points_[begin + b][axis];
-    return xa < xb || (xa == xb && point_indices_[begin + a] < point_indices_[begin + b]);
+  // Slots move with their points: order a permutation of the range, then apply it. With
+  // ties by point index, each child gets the same points whether the range is sorted or only
+  // split at the children's bounds. The keys lie side by side: compared through the slots,
+  // most reads of a large node missed the cache; the algorithms see the same comparisons
+  // either way, so they leave the same order.
+  std::vector<SplitKey>& keys = scratch.keys;
+  keys.resize(node.point_count);
+  for (std::uint32_t i = 0; i < node.point_count; ++i) {
+    keys[i] = {build_points_[begin + i][axis], point_indices_[begin + i], i};
+  }
+  const auto before = [](const SplitKey& a, const SplitKey& b) {
+    return a.coordinate < b.coordinate || (a.coordinate == b.coordinate && a.point < b.point);
   };
   if (sort_children) {
-    std::sort(order.begin(), order.end(), before);
+    std::sort(keys.begin(), keys.end(), before);
   } else {
     for (std::uint32_t c = 1; c < children; ++c) {
-      std::nth_element(order.begin() + node.point_count * (c - 1) / children,
-                       order.begin() + node.point_count * c / children, order.end(), before);
+      std::nth_element(keys.begin() + node.point_count * (c - 1) / children,
+                       keys.begin() + node.point_count * c / children, keys.end(), before);
     }
   }
-  applyOrder(node, order);
+  scratch.order.resize(node.point_count);
+  for (std::uint32_t i = 0; i < node.point_count; ++i) scratch.order[i] = keys[i].slot;
+  applyOrder(node, scratch);
 }
 
 Eigen::Index SphereTree::longestAxis(const SphereNode& node) const {
@@ -232,21 +257,22 @@ Eigen::Index SphereTree::longestAxis(const SphereNode& node) const {
 
 namespace {
 
-/// Slot first + i of `values` takes what was slot first + order[i].
+/// Slot first + i of `values` takes what was slot first + order[i], through `ordered`.
 template <typename T>
-void permute(std::vector<T>& values, std::size_t first, const std::vector<std::uint32_t>& order) {
-  std::vector<T> ordered(order.size());
+void permute(std::vector<T>& values, std::size_t first, const std::vector<std::uint32_t>& order,
+             std::vector<T>& ordered) {
+  ordered.resize(order.size());
   for (std::size_t i = 0; i < order.size(); ++i) ordered[i] = values[first + order[i]];
   std::copy(ordered.begin(), ordered.end(), values.begin() + first);
 }
 
 }  // namespace
 
-void SphereTree::applyOrder(const SphereNode& node, const std::vector<std::uint32_t>& order) {
-  permute(point_indices_, node.first_point, order);
-  permute(point_slots_, node.first_point, order);
-  permute(build_points_, node.first_point, order);
-  permute(build_offsets_, node.first_point, order);
+void SphereTree::applyOrder(const SphereNode& node, BuildScratch& scratch) {
+  permute(point_indices_, node.first_point, scratch.order, scratch.indices);
+  permute(point_slots_, node.first_point, scratch.order, scratch.indices);
+  permute(build_points_, node.first_point, scratch.order, scratch.points);
+  permute(build_offsets_, node.first_point, scratch.order, scratch.points);
 }
 
 void SphereTree::addChildren(std::uint32_t index, std::uint32_t children) {

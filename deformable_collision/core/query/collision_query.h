@@ -58,8 +58,8 @@ struct QueryCounters {
 /// leaves they rule out node and leaf pairs whose spheres come within reach but whose points
 /// cannot.
 struct PairSlabs {
-  const NodeSlabs* a = nullptr;
-  const NodeSlabs* b = nullptr;
+  NodeSlabs* a = nullptr;
+  NodeSlabs* b = nullptr;
 
   /// Whether a slab proves node_a's points and node_b's at least `distance_m` apart.
   bool apart(std::uint32_t node_a, const Sphere& sphere_a, std::uint32_t node_b,

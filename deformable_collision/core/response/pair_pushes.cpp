@@ -27,11 +27,12 @@ ContactResponse::FixedSurface ContactResponse::fixedSurface(const ResolvingPair&
   const bool a_fixed = !pair.a.dynamic();
   Object& fixed = a_fixed ? pair.a : pair.b;
   const int cluster = std::max(0, fixed.tree.node(node).cluster);
-  FixedSurface surface{fixed.body.deformation(cluster).rotation * fixed.planes.normals[node],
-                       fixed.tree.sphere(node).center, fixed.planes.extent_along[node]};
+  const detail::FixedPlanes::Plane& plane = fixed.planes->plane(node);
+  FixedSurface surface{fixed.body.deformation(cluster).rotation * plane.normal,
+                       fixed.tree.sphere(node).center, plane.extent_along};
   if (surface.away.dot(a_fixed ? Eigen::Vector3d(-pair.side_of_a) : pair.side_of_a) < 0.0) {
     surface.away = -surface.away;
-    surface.reach = fixed.planes.extent_against[node];
+    surface.reach = plane.extent_against;
   }
   return surface;
 }

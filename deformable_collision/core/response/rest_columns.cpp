@@ -29,6 +29,10 @@ RestColumns::RestColumns(const ShapeMatchingBody& body, const SphereTree& tree)
     slot_points_.push_back(body.restPositions()[index]);
   }
   boundBoxes();
+  // Walks run in the response's cycle: no column holds more points, nor a descent more
+  // pending nodes, than the tree has.
+  pending_.reserve(nodes_.size());
+  offsets_.reserve(slot_points_.size());
 }
 
 void RestColumns::boundBoxes() {

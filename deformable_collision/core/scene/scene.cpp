@@ -175,11 +175,11 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
   made->rest_shape = ++rest_shapes_made;
   // The planes' gap is the contact distance the scene was made with: this runs on the
   // node's reader thread, apart from setContactDistance().
-  if (!made->dynamic()) made->planes.compute(made->body, made->tree, planes_gap_m_);
+  if (!made->dynamic()) made->planes.emplace(made->body, made->tree, planes_gap_m_);
   if (config.kind == ObjectKind::kStatic) {
     // A wall's root sphere spans the room; its points' box is what it really covers.
     for (const auto& point : made->body.positions()) made->points_box.extend(point);
-    made->slabs.compute(made->tree, made->body.positions());
+    made->slabs.measureOnDemand(made->tree, made->body.positions());
   }
   if (config.kind == ObjectKind::kKinematic) {
     made->rest_slabs.compute(made->tree, made->body.restPositions());

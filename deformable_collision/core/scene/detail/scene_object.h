@@ -23,6 +23,9 @@ namespace detail {
 struct SceneObject {
   SceneObject(const ObjectConfig& object_config, std::vector<Eigen::Vector3d> rest_points,
               const SphereTreeConfig& tree_config);
+  // The tree, the slabs and the planes point into the object itself.
+  SceneObject(const SceneObject&) = delete;
+  SceneObject& operator=(const SceneObject&) = delete;
 
   bool dynamic() const { return config.kind == ObjectKind::kDynamic; }
 
@@ -42,7 +45,7 @@ struct SceneObject {
   Eigen::AlignedBox3d points_box;             ///< Static objects: their points' box, set when made.
   std::vector<Eigen::Vector3d> posed_points;  ///< Kinematic objects: the rest shape posed.
 
-  FixedPlanes planes;  ///< Objects the response never moves.
+  std::optional<FixedPlanes> planes;  ///< Objects the response never moves.
   /// Static and kinematic objects, whose nodes' points move only rigidly: the slabs of
   /// their points now, and a kinematic object's of its rest shape, which each pose moves.
   NodeSlabs slabs;
