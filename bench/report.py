@@ -3,8 +3,8 @@
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv,
 s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv, registration.txt,
-registration_zoo*.csv, registered_objects.csv, add_object.csv, reset_latency.csv and distance.csv
-there; writes s1.md, s2.md,
+registration_zoo*.csv, registered_objects.csv, add_object.csv, reset_latency.csv, threads.csv
+and distance.csv there; writes s1.md, s2.md, threads.md,
 s3.md, forces.md, memory.md, registration.md, registration_zoo.md, registered_objects.md, distance.md,
 add_object.md, summary.md (headline figures and the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
 registration_error_vs_time.png, registration_zoo_error_vs_time.png,
@@ -670,6 +670,57 @@ def registered_objects_report(results, rows):
     write(results, "registered_objects.md", text)
 
 
+THREADS_SCENES = {"pile": "S2 pile, finest level", "two_objects": "S1 two objects",
+                  "three_objects": "S3 three objects"}
+
+
+def read_threads(results):
+    """bench_threads' rows by (scene, threads); none if the file is not there."""
+    path = os.path.join(results, "threads.csv")
+    if not os.path.exists(path):
+        return {}
+    return {(r["scene"], int(r["threads"])): r for r in read(results, "threads.csv")}
+
+
+def threads_report(results, rows):
+    text = "# The cycle on several threads\n\n"
+    text += ("`bench/bench_threads.cpp`: each scene made with `SceneConfig::threads` 1, 2 and 4, "
+             "settled 150 cycles, then the mean of 100 cycles per stage, in ms; of 3 runs, the one of the least whole cycle. Dynamic objects "
+             "step on the pool once they hold 32k points or more (S2; S1 and S3 stay on one "
+             "thread); detection and the response run on the cycle's thread. The states are the "
+             "same on every count (`test_scene_threads`).\n\n")
+    text += table(["scene", "threads", "shape matching", "detection", "response", "whole cycle"],
+                  [(THREADS_SCENES.get(scene, scene), threads,
+                    f"{float(r['shape_matching_ms']):.3f}", f"{float(r['detection_ms']):.3f}",
+                    f"{float(r['response_ms']):.3f}", f"{float(r['whole_ms']):.3f}")
+                   for (scene, threads), r in rows.items()])
+    write(results, "threads.md", text)
+
+
+def threads_targets(rows):
+    """The thread pool's targets, met or not; none if bench_threads did not run."""
+    if not rows:
+        return []
+
+    def whole(scene, threads):
+        return float(rows[(scene, threads)]["whole_ms"])
+
+    two = whole("pile", 2) / whole("pile", 1)
+    four = whole("pile", 4) / whole("pile", 2)
+    small = max(whole(scene, 2) / whole(scene, 1) for scene in ("two_objects", "three_objects"))
+    return [
+        ("S2 finest level, whole cycle: threads 2 / threads 1 <= 0.6",
+         f"{whole('pile', 2):.3f} / {whole('pile', 1):.3f} ms = {two:.2f}",
+         "**met**" if two <= 0.6 else "**not met**"),
+        ("S2 finest level, whole cycle: threads 4 <= 1.05 x threads 2 (2 cores)",
+         f"{whole('pile', 4):.3f} / {whole('pile', 2):.3f} ms = {four:.2f}",
+         "**met**" if four <= 1.05 else "**not met**"),
+        ("S1 and S3: threads 2 not slower than threads 1 (within 5%)",
+         f"worst threads 2 / threads 1 = {small:.2f}",
+         "**met**" if small <= 1.05 else "**not met**"),
+    ]
+
+
 def distance_report(results):
     """distance.md: ~get_distance's query against FCL's distance(); False if not run."""
     path = os.path.join(results, "distance.csv")
@@ -888,6 +939,7 @@ def targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object):
         *forces_targets(forces),
         *add_object_target_rows(add_object),
         *(reset_latency_target(results) if add_object else []),
+        *threads_targets(read_threads(results)),
     ])
 
 
@@ -985,6 +1037,8 @@ def benchmarks_doc(results, registration, forces, add_object, zoo, registered_ob
         sections.append(doc_section(results, "add_object.md", plot="add_object_time_vs_points.png"))
     if distance:
         sections.append(doc_section(results, "distance.md"))
+    if os.path.exists(os.path.join(results, "threads.md")):
+        sections.append(doc_section(results, "threads.md"))
     sections.append(doc_section(results, "memory.md"))
     if os.path.exists(os.path.join(results, "latency.md")):
         sections.append(doc_section(results, "latency.md", note=(
@@ -1034,6 +1088,9 @@ def main():
     if add_object:
         add_object_report(results, add_object)
     distance = distance_report(results)
+    threads = read_threads(results)
+    if threads:
+        threads_report(results, threads)
     headline = headline_table(sizes, ms, methods, s2_rows, s3, registration, add_object)
     summary(results, headline,
             targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object))
@@ -1043,7 +1100,8 @@ def main():
             (["registration_zoo.md"] if zoo else []) + \
             (["registered_objects.md"] if registered_objects else []) + \
             (["add_object.md"] if add_object else []) + \
-            (["distance.md"] if distance else []):
+            (["distance.md"] if distance else []) + \
+            (["threads.md"] if threads else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
     print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "

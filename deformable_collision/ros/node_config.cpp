@@ -9,7 +9,9 @@
 #include <set>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
+#include "deformable_collision/core/common/worker_pool.h"
 #include "deformable_collision/ros/detail/param_reader.h"
 
 namespace deformable_collision {
@@ -439,6 +441,9 @@ NodeConfig parseNodeConfig(const XmlRpc::XmlRpcValue& params, std::vector<std::s
       read.number("contact_distance_m", scene.contact_distance_m, 0.0, 1e6, true);
   scene.friction = read.number("friction", scene.friction, 0.0, 1e3);
   scene.contact_forces = read.flag("contact_forces", scene.contact_forces);
+  // The machine's cores, at most 8: the stages that share out gain little beyond that.
+  const long cores = std::clamp<long>(std::thread::hardware_concurrency(), 1, 8);
+  scene.threads = static_cast<int>(read.integer("threads", cores, 1, WorkerPool::kMaxThreads));
   if (const XmlRpcValue* tree = read.find("tree")) {
     ParamReader tree_read(*tree, "tree");
     scene.tree.leaf_size =

@@ -133,6 +133,21 @@ TEST(Scene, SteadyStateCyclesAllocateNothing) {
   EXPECT_GT(gripper.scene->stats().contacts, 0u) << "the jaws must hold the fruit";
 }
 
+// The same on two threads: a fruit of 40k points steps on the pool (Scene::kPointsWorthSharing),
+// whose loops allocate nothing.
+TEST(Scene, SteadyStateCyclesOnTwoThreadsAllocateNothing) {
+  SceneConfig config;
+  config.threads = 2;
+  std::unique_ptr<Scene> scene = makeDemoScene(DemoScene::kGripper, 40000, config);
+  int cycle = 0;
+  const auto step = [&](int) {
+    driveDemoScene(DemoScene::kGripper, *scene, cycle++ * scene->config().dt_s);
+    scene->cycle();
+  };
+  EXPECT_EQ(allocationsAfterWarmUp(300, 320, step), 0);
+  EXPECT_GT(scene->stats().contacts, 0u) << "the jaws must hold the fruit";
+}
+
 // A ball sliding over a static floor reaches new nodes of the floor every cycle, whose slabs
 // and planes are measured then: that allocates nothing either.
 TEST(Scene, SlabsAndPlanesMeasuredInACycleAllocateNothing) {

@@ -30,6 +30,7 @@ XmlRpcValue validParams() {
   params["contact_distance_m"] = 0.01;
   params["max_points_per_object"] = 5000;
   params["max_coordinate_m"] = 500.0;
+  params["threads"] = 3;
   params["gravity_mps2"][0] = 0.0;
   params["gravity_mps2"][1] = 0.0;
   params["gravity_mps2"][2] = -1.62;
@@ -77,6 +78,7 @@ TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
   EXPECT_DOUBLE_EQ(config.scene.contact_distance_m, 0.01);
   EXPECT_EQ(config.max_points_per_object, 5000u);
   EXPECT_DOUBLE_EQ(config.max_coordinate_m, 500.0);
+  EXPECT_EQ(config.scene.threads, 3);
   EXPECT_TRUE(config.scene.gravity_mps2.isApprox(Eigen::Vector3d(0, 0, -1.62)));
   EXPECT_TRUE(config.markers_colliding_only);
   EXPECT_DOUBLE_EQ(config.force_marker_scale_m_per_n, 0.05);
@@ -120,6 +122,8 @@ TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
   EXPECT_DOUBLE_EQ(config.objects[0].object.contact_stiffness_n_per_m, 0.0);
   EXPECT_DOUBLE_EQ(config.force_marker_scale_m_per_n, 0.01);
   EXPECT_TRUE(config.scene.contact_forces);
+  EXPECT_GE(config.scene.threads, 1);
+  EXPECT_LE(config.scene.threads, 8);
 }
 
 struct BadParamCase {
@@ -162,6 +166,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"InfiniteBudget", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = std::numeric_limits<double>::infinity(); }, "cycle_budget_ms = inf"},
         BadParamCase{"NaNBudget", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = std::numeric_limits<double>::quiet_NaN(); }, "cycle_budget_ms = nan"},
         BadParamCase{"BudgetAsString", [](XmlRpcValue& p) { p["level"] = "auto"; p["cycle_budget_ms"] = "short"; }, "cycle_budget_ms must be a number"},
+        BadParamCase{"NoThreads", [](XmlRpcValue& p) { p["threads"] = 0; }, "threads = 0 must be in [1, 64]"},
+        BadParamCase{"ThreadsAsNumber", [](XmlRpcValue& p) { p["threads"] = 2.0; }, "threads must be an integer"},
         BadParamCase{"NegativeContactDistance", [](XmlRpcValue& p) { p["contact_distance_m"] = -0.1; }, "contact_distance_m"},
         BadParamCase{"GravityOfTwo", [](XmlRpcValue& p) {
           XmlRpcValue two; two[0] = 0.0; two[1] = -9.81; p["gravity_mps2"] = two; }, "gravity_mps2 must be a list of 3"},

@@ -22,6 +22,15 @@ double millisecondsBetween(Clock::time_point from, Clock::time_point to) {
   return std::chrono::duration<double, std::milli>(to - from).count();
 }
 
+/// The pool is made before the constructor's checks: its count is checked here.
+int validThreads(int threads) {
+  if (threads < 1 || threads > WorkerPool::kMaxThreads) {
+    throw std::invalid_argument("SceneConfig.threads = " + std::to_string(threads) +
+                                " must be in [1, " + std::to_string(WorkerPool::kMaxThreads) + "]");
+  }
+  return threads;
+}
+
 }  // namespace
 
 namespace detail {
@@ -41,7 +50,8 @@ Scene::Scene(const SceneConfig& config)
     : config_(config),
       planes_gap_m_(config.contact_distance_m),
       response_(objects_, contacts_, contact_runs_, config_),
-      forces_(objects_) {
+      forces_(objects_),
+      pool_(validThreads(config.threads)) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
   std::ostringstream value;
   if (!config.gravity_mps2.allFinite()) fail("SceneConfig.gravity_mps2 is not finite");
@@ -252,13 +262,7 @@ void Scene::cycle() {
   stats_ = CycleStats{};
   stats_.objects_moved = moved_before;
   const auto start = Clock::now();
-  for (auto& object : objects_) {
-    if (!object->dynamic()) continue;
-    object->center_before_step = object->body.centerOfMass();
-    object->body.step(config_.dt_s, config_.gravity_mps2);
-    object->stale = true;
-    ++stats_.objects_moved;
-  }
+  stepDynamicObjects();
   const auto simulated = Clock::now();
 
   refreshStaleTrees();
@@ -296,6 +300,31 @@ void Scene::cycle() {
     stats_.cycle_budget_ms = level_budget_->budgetMs();
     level_budget_->record(cycle_cost_source_ ? cycle_cost_source_(stats_)
                                              : detection_ms + stats_.response_ms);
+  }
+}
+
+void Scene::stepDynamicObjects() {
+  std::size_t points = 0;
+  for (const auto& object : objects_) {
+    if (!object->dynamic()) continue;
+    points += object->body.pointCount();
+    object->stale = true;
+    ++stats_.objects_moved;
+  }
+  // Each object's step reads and writes only its own body: on any number of threads the
+  // states are the same. Below kPointsWorthSharing, waking the workers and the bodies' data
+  // left in another core's cache for detection cost more than the step saves (S3's 19k
+  // points were 5% slower on two threads).
+  const auto step = [this](std::size_t i) {
+    Object& object = *objects_[i];
+    if (!object.dynamic()) return;
+    object.center_before_step = object.body.centerOfMass();
+    object.body.step(config_.dt_s, config_.gravity_mps2);
+  };
+  if (points >= kPointsWorthSharing) {
+    pool_.forEach(objects_.size(), step);
+  } else {
+    for (std::size_t i = 0; i < objects_.size(); ++i) step(i);
   }
 }
 

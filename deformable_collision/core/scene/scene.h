@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "deformable_collision/core/common/enum_names.h"
+#include "deformable_collision/core/common/worker_pool.h"
 #include "deformable_collision/core/hierarchy/sphere_tree.h"
 #include "deformable_collision/core/lod/level_budget.h"
 #include "deformable_collision/core/lod/level_costs.h"
@@ -72,6 +73,10 @@ struct SceneConfig {
   bool contact_forces = true;
   SphereTreeConfig tree;
   RegistrationConfig registration;  ///< Of tracked objects' unordered clouds (registerCloud).
+  /// Threads a cycle's shape matching runs on, the caller's included, in [1, 64]: dynamic
+  /// objects step on them together once they hold enough points to pay for it. Every
+  /// count gives the same states, bit for bit.
+  int threads = 1;
 };
 
 /// A contact between two objects of the scene, at `contact.level`.
@@ -354,6 +359,9 @@ class Scene {
   /// @throw std::out_of_range for a bad index, std::invalid_argument for another kind.
   Object& objectOfKind(std::size_t object, ObjectKind kind, const char* what);
   void refreshStaleTrees();
+  /// Steps every dynamic object, on the pool's threads when their points are enough.
+  void stepDynamicObjects();
+  static constexpr std::size_t kPointsWorthSharing = 32768;
 
   /// Appends the points of `object` within `radius_m` of `center_m` to `points_m`.
   void appendPointsWithin(std::size_t object, const Eigen::Vector3d& center_m, double radius_m,
@@ -419,6 +427,7 @@ class Scene {
   CycleStats stats_;
   ContactResponse response_;  ///< Reads objects_, contacts_, contact_runs_ and config_.
   ContactForces forces_;      ///< Reads objects_.
+  WorkerPool pool_;           ///< The cycle's shape matching (stepDynamicObjects).
 };
 
 }  // namespace deformable_collision
