@@ -943,12 +943,11 @@ def targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object):
     ])
 
 
-def s1_headline(ms, methods, distance, points, against):
-    """Ours against the best peer (against=None) or against one of our variants, in S1."""
+def s1_headline(ms, methods, distance, points):
+    """Ours against the best peer in S1."""
     ours = ms[(distance, points, OURS)]
-    other = against or best_peer(ms, distance, points, methods)
-    what = f"the {other.replace('_', ' ')}" if against else "the best peer"
-    return (f"S1 {s1_case_name(distance)}, {points // 1000}k points: ours against {what}",
+    other = best_peer(ms, distance, points, methods)
+    return (f"S1 {s1_case_name(distance)}, {points // 1000}k points: ours against the best peer",
             f"{ours:.3f} ms against {other} {ms[(distance, points, other)]:.3f} ms: "
             f"{ms[(distance, points, other)] / ours:.1f}x faster")
 
@@ -958,17 +957,10 @@ def headline_table(sizes, ms, methods, s2_rows, s3, registration, add_object):
     largest = sizes[-1]
     finest = s2_rows[-1]
     finest_total = float(finest["total_ms"])
-    level2 = next((r for r in s2_rows if r["level"] == "2"), None)
-    rows = [s1_headline(ms, methods, NEAR_MISS_M, largest, None),
-            s1_headline(ms, methods, NEAR_MISS_M, largest, "full_refit"),
-            s1_headline(ms, methods, DENSE_M, largest, None),
+    rows = [s1_headline(ms, methods, NEAR_MISS_M, largest),
             (f"S2 pile, finest level ({finest['level']}): detection + response",
              f"{float(finest['detection_ms']):.2f} + {float(finest['response_ms']):.2f} = "
              f"{finest_total:.2f} ms")]
-    if level2:
-        rows.append(("S2 pile, level 2: detection + response against the finest level's",
-                     f"{float(level2['total_ms']):.2f} / {finest_total:.2f} ms = "
-                     f"{float(level2['total_ms']) / finest_total:.2f}"))
     rows.append(("S3 whole cycle, with the PointCloud2 conversion", f"{s3['whole_cycle']:.3f} ms"))
     ours = registration_defaults(registration)
     rest = next((r for r in registration if r["kind"] == "rest"), None)

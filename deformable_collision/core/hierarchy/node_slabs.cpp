@@ -34,7 +34,9 @@ void NodeSlabs::measureOnDemand(const SphereTree& tree,
 
 void NodeSlabs::compute(const SphereTree& tree, const std::vector<Eigen::Vector3d>& positions) {
   measureOnDemand(tree, positions);
-  for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) measure(n);
+  for (std::uint32_t n = 0; n < tree.nodeCount(); ++n) {
+    if (!measured_[n]) measure(n);
+  }
   std::vector<Eigen::Vector3d>().swap(slot_points_);
 }
 

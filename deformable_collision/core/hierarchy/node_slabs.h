@@ -19,6 +19,8 @@ namespace deformable_collision {
 /// within reach; the slab rules those pairs out.
 class NodeSlabs {
  public:
+  /// Levels below the root whose slabs measureOnDemand() measures at once: every query
+  /// reads them.
   static constexpr int kLevelsAtOnce = 6;
 
   /// The slabs of every node of `tree`, whose points are `positions` (indexed by the tree's
