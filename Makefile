@@ -54,13 +54,19 @@ bench:
 # docs/demo.png: the demo in rviz, rendered headless under Xvfb; SCENE=camera_gripper (or
 # another scene of demo.launch) writes docs/<scene>.png. camera_gripper is grabbed 5 s after
 # rviz's window appears (about 9 s into the scene), while the jaws still press the sponge;
-# robot_gripper's fingers keep holding the fruit for the picture.
+# robot_gripper's fingers keep holding the fruit for the picture. SCENE=folded_strip renders
+# launch/folded_strip.launch (a strip folded onto itself) into docs/folded_strip.png.
 screenshot: RVIZ := 1
 screenshot: build
+ifeq ($(SCENE),folded_strip)
+	@RENDER_SETTLE_S=$${RENDER_SETTLE_S:-6} RENDER_LAUNCH=folded_strip.launch \
+	  bash scripts/render_demo_png "$(WORKSPACE)" docs/folded_strip.png
+else
 	@RENDER_SETTLE_S=$${RENDER_SETTLE_S:-$(if $(filter camera_gripper,$(SCENE)),5,7)} \
 	  bash scripts/render_demo_png "$(WORKSPACE)" \
 	  docs/$(if $(filter gripper,$(SCENE)),demo,$(SCENE)).png scene:=$(SCENE) \
 	  $(if $(filter robot_gripper,$(SCENE)),gripper_open_at_s:=1000)
+endif
 
 clean:
 	rm -rf "$(WORKSPACE)"

@@ -3,8 +3,8 @@
 
 Usage: report.py RESULTS_DIR. Reads s1.csv, s1_pairs.csv, s2.csv, s2_state.csv,
 s2_auto.csv, s2_rest.csv, s3.csv, baselines.csv, forces.csv, memory.csv, registration.txt,
-registration_zoo*.csv, registered_objects.csv, add_object.csv, reset_latency.csv, threads.csv
-and distance.csv there; writes s1.md, s2.md, threads.md,
+registration_zoo*.csv, registered_objects.csv, add_object.csv, reset_latency.csv, threads.csv,
+self_collision.csv and distance.csv there; writes s1.md, s2.md, threads.md, self_collision.md,
 s3.md, forces.md, memory.md, registration.md, registration_zoo.md, registered_objects.md, distance.md,
 add_object.md, summary.md (headline figures and the targets, met or not) and the plots s1_time_vs_points.png, s2_error_vs_time.png,
 registration_error_vs_time.png, registration_zoo_error_vs_time.png,
@@ -721,6 +721,65 @@ def threads_targets(rows):
     ]
 
 
+def read_self_collision(results):
+    """bench_self_collision's rows by (clusters, points); none if the file is not there."""
+    path = os.path.join(results, "self_collision.csv")
+    if not os.path.exists(path):
+        return {}
+    return {(int(r["clusters"]), int(r["points"])): r for r in read(results, "self_collision.csv")}
+
+
+def per_contact_us(row):
+    return 1000.0 * float(row["self_query_ms"]) / max(1, int(row["self_contacts"]))
+
+
+def flat_price(row):
+    """What self_collision adds to the cycle of a strip that does not fold, as a share."""
+    return float(row["flat_cycle_on_ms"]) / float(row["flat_cycle_off_ms"]) - 1.0
+
+
+def self_collision_report(results, rows):
+    text = "# S4: a strip folded onto itself (self_collision)\n\n"
+    text += ("`bench/bench_self_collision.cpp`: a 40 x 10 cm strip of two layers, its contact "
+             "distance its point spacing, bent into a U whose arms' inner faces are half a "
+             "contact distance apart; the self-query to the leaves (least of 10), against PCL's "
+             "kd-tree radius search with the same rest rule (least of 3). Self-contacts are leaf "
+             "pairs; the kd-tree's are point pairs, every one under a leaf contact (missed: 0). "
+             "Then the strip lying flat on a floor: the whole cycle with self_collision off and "
+             "on (mean of 50 cycles, least of 3 runs).\n\n")
+    text += table(["clusters", "points", "self-query ms", "node pairs", "self-contacts",
+                   "us per contact", "kd-tree ms", "kd-tree / ours", "flat cycle off / on ms"],
+                  [(clusters, points, f"{float(r['self_query_ms']):.2f}", r["node_pairs"],
+                    r["self_contacts"], f"{per_contact_us(r):.2f}", f"{float(r['kdtree_ms']):.1f}",
+                    f"{float(r['kdtree_ms']) / float(r['self_query_ms']):.1f}",
+                    f"{float(r['flat_cycle_off_ms']):.3f} / {float(r['flat_cycle_on_ms']):.3f}")
+                   for (clusters, points), r in sorted(rows.items())])
+    write(results, "self_collision.md", text)
+
+
+def self_collision_targets(rows):
+    """S4's targets per cluster count, met or not; none if bench_self_collision did not run."""
+    targets = []
+    for clusters in sorted({c for c, _ in rows}):
+        sizes = sorted(p for c, p in rows if c == clusters)
+        small, large = rows[(clusters, sizes[0])], rows[(clusters, sizes[-1])]
+        spread = max(per_contact_us(rows[(clusters, p)]) for p in sizes) / \
+            min(per_contact_us(rows[(clusters, p)]) for p in sizes)
+        speedup = float(large["kdtree_ms"]) / float(large["self_query_ms"])
+        price = max(flat_price(rows[(clusters, p)]) for p in sizes)
+        targets += [
+            (f"S4, {clusters} cluster(s): time per self-contact flat within 2x, "
+             f"{int(small['points']) // 1000}k to {int(large['points']) // 1000}k",
+             f"{spread:.2f}x", "**met**" if spread <= 2 else "**not met**"),
+            (f"S4, {clusters} cluster(s): >= 10x faster than the kd-tree at "
+             f"{int(large['points']) // 1000}k", f"{speedup:.1f}x",
+             "**met**" if speedup >= 10 else "**not met**"),
+            (f"S4, {clusters} cluster(s): self_collision on a strip that does not fold < 5% "
+             "of the cycle", f"at most {100 * price:+.1f}%", "**met**" if price < 0.05 else "**not met**"),
+        ]
+    return targets
+
+
 def distance_report(results):
     """distance.md: ~get_distance's query against FCL's distance(); False if not run."""
     path = os.path.join(results, "distance.csv")
@@ -940,6 +999,7 @@ def targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object):
         *add_object_target_rows(add_object),
         *(reset_latency_target(results) if add_object else []),
         *threads_targets(read_threads(results)),
+        *self_collision_targets(read_self_collision(results)),
     ])
 
 
@@ -1031,6 +1091,8 @@ def benchmarks_doc(results, registration, forces, add_object, zoo, registered_ob
         sections.append(doc_section(results, "distance.md"))
     if os.path.exists(os.path.join(results, "threads.md")):
         sections.append(doc_section(results, "threads.md"))
+    if os.path.exists(os.path.join(results, "self_collision.md")):
+        sections.append(doc_section(results, "self_collision.md"))
     sections.append(doc_section(results, "memory.md"))
     if os.path.exists(os.path.join(results, "latency.md")):
         sections.append(doc_section(results, "latency.md", note=(
@@ -1083,6 +1145,9 @@ def main():
     threads = read_threads(results)
     if threads:
         threads_report(results, threads)
+    self_collision = read_self_collision(results)
+    if self_collision:
+        self_collision_report(results, self_collision)
     headline = headline_table(sizes, ms, methods, s2_rows, s3, registration, add_object)
     summary(results, headline,
             targets_table(results, sizes, ms, methods, s2_rows, s3, forces, add_object))
@@ -1093,7 +1158,8 @@ def main():
             (["registered_objects.md"] if registered_objects else []) + \
             (["add_object.md"] if add_object else []) + \
             (["distance.md"] if distance else []) + \
-            (["threads.md"] if threads else []):
+            (["threads.md"] if threads else []) + \
+            (["self_collision.md"] if self_collision else []):
         with open(os.path.join(results, name)) as f:
             print(f.read())
     print(f"report: {results}/ (markdown, CSV, s1_time_vs_points.png, s2_error_vs_time.png, "

@@ -182,6 +182,19 @@ void readContactStiffness(ParamReader& read, ObjectConfig& object) {
   }
 }
 
+/// Whether the object's contacts with itself are detected, and at what rest distance.
+void readSelfCollision(ParamReader& read, ObjectConfig& object) {
+  object.self_collision = read.flag("self_collision", false);
+  object.self_rest_distance_m =
+      read.number("self_rest_distance_m", object.self_rest_distance_m, 0.0, 1e3);
+  if (object.self_collision &&
+      (object.kind == ObjectKind::kStatic || object.kind == ObjectKind::kKinematic)) {
+    ParamReader::fail(read.name("self_collision"),
+                      std::string("needs a dynamic or tracked object, not a ") +
+                          toString(object.kind) + " one, which never deforms");
+  }
+}
+
 /// One entry of `objects`, read in the order of its checks, so that the first problem of an
 /// entry is the one reported.
 ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
@@ -206,6 +219,7 @@ ObjectParams parseObject(const XmlRpcValue& entry, const std::string& path) {
   object.shape.mode = object.kind == ObjectKind::kKinematic ? DeformationMode::kRigid : mode.mode;
   readShapeMatching(read, object.shape);
   readContactStiffness(read, object);
+  readSelfCollision(read, object);
   read.finish();
   return params;
 }

@@ -1,5 +1,6 @@
 #include "deformable_collision/scenes/shapes.h"
 
+#include <cmath>
 #include <random>
 
 namespace deformable_collision {
@@ -64,6 +65,45 @@ std::vector<Eigen::Vector3d> sampleNoisySurface(std::size_t count, const Eigen::
     points.push_back((u / length).cwiseProduct(radii_m) + noise_m * noise);
   }
   return points;
+}
+
+std::vector<Eigen::Vector3d> gridBox(int nx, int ny, int nz, double spacing_m) {
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(static_cast<std::size_t>(nx) * ny * nz);
+  for (int i = 0; i < nx; ++i) {
+    for (int j = 0; j < ny; ++j) {
+      for (int k = 0; k < nz; ++k) {
+        points.emplace_back((i - 0.5 * (nx - 1)) * spacing_m, (j - 0.5 * (ny - 1)) * spacing_m,
+                            (k - 0.5 * (nz - 1)) * spacing_m);
+      }
+    }
+  }
+  return points;
+}
+
+std::vector<Eigen::Vector3d> bentIntoU(const std::vector<Eigen::Vector3d>& points,
+                                       double radius_m) {
+  const double half_arc_m = 0.5 * 3.14159265358979323846 * radius_m;
+  std::vector<Eigen::Vector3d> bent;
+  bent.reserve(points.size());
+  for (const Eigen::Vector3d& p : points) {
+    const double u = p.x();
+    Eigen::Vector2d centre, outward;
+    if (u < -half_arc_m) {
+      centre = {u + half_arc_m, -radius_m};
+      outward = {0.0, -1.0};
+    } else if (u > half_arc_m) {
+      centre = {half_arc_m - u, radius_m};
+      outward = {0.0, 1.0};
+    } else {
+      outward = {std::cos(u / radius_m), std::sin(u / radius_m)};
+      centre = radius_m * outward;
+    }
+    // Across the shape, y runs along the outward normal: a bend, not a tear.
+    const Eigen::Vector2d in_plane = centre + p.y() * outward;
+    bent.emplace_back(in_plane.x(), in_plane.y(), p.z());
+  }
+  return bent;
 }
 
 }  // namespace deformable_collision

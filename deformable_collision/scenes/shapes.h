@@ -27,4 +27,12 @@ std::vector<Eigen::Vector3d> gridLayers(int side, int layers, double spacing_m);
 std::vector<Eigen::Vector3d> sampleNoisySurface(std::size_t count, const Eigen::Vector3d& radii_m,
                                                 double noise_m, std::uint64_t seed);
 
+/// A box of nx x ny x nz points `spacing_m` apart along x, y and z, centred at the origin.
+std::vector<Eigen::Vector3d> gridBox(int nx, int ny, int nz, double spacing_m);
+
+/// A shape lying along x bent into a U in the xy-plane: its middle around a half circle of
+/// centre-line radius `radius_m` (about x = 0), its two ends straight arms along -x, one
+/// above the other; y across the shape runs along the bend's outward normal.
+std::vector<Eigen::Vector3d> bentIntoU(const std::vector<Eigen::Vector3d>& points, double radius_m);
+
 }  // namespace deformable_collision

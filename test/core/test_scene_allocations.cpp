@@ -135,6 +135,37 @@ TEST(Scene, SteadyStateCyclesAllocateNothing) {
 
 // The same on two threads: a fruit of 40k points steps on the pool (Scene::kPointsWorthSharing),
 // whose loops allocate nothing.
+// A soft U pressing its arms together: the self-collision query and response.
+TEST(Scene, SteadySelfContactCyclesAllocateNothing) {
+  SceneConfig config;
+  config.gravity_mps2.setZero();
+  Scene scene(config);
+  ObjectConfig u;
+  u.name = "u";
+  u.shape.clusters = 6;
+  u.shape.stiffness = 0.001;
+  u.self_collision = true;
+  const std::size_t index =
+      scene.addObject(u, bentIntoU(gridBox(61, 4, 4, 0.005), 0.5 * (0.025 + 0.015)));
+  std::vector<Eigen::Vector3d> velocities;
+  for (const auto& p : scene.body(index).restPositions()) {
+    velocities.emplace_back(0.0, p.x() < -0.01 ? (p.y() > 0.0 ? -0.2 : 0.2) : 0.0, 0.0);
+  }
+  scene.setVelocities(index, velocities);
+  // The arms meet in cycle 7, most contacts then; they press on each other until cycle 29.
+  for (int warm = 0; warm < 9; ++warm) scene.cycle();
+  std::size_t contacts = 0;
+  allocations = 0;
+  counting = true;
+  for (int steady = 0; steady < 20; ++steady) {
+    scene.cycle();
+    contacts += scene.stats().contacts;
+  }
+  counting = false;
+  EXPECT_EQ(allocations.load(), 0);
+  EXPECT_GT(contacts, 20u) << "the arms must press on each other";
+}
+
 TEST(Scene, SteadyStateCyclesOnTwoThreadsAllocateNothing) {
   SceneConfig config;
   config.threads = 2;

@@ -50,6 +50,8 @@ XmlRpcValue validParams() {
   objects[1]["expected_rate_hz"] = 15.0;
   objects[1]["beta"] = 0.4;
   objects[1]["mass_kg"] = 0.25;
+  objects[1]["self_collision"] = true;
+  objects[1]["self_rest_distance_m"] = 0.03;
   objects[2] = object("jaw", "/jaw/points");
   objects[2]["dynamic"] = false;
   objects[2]["follow_frame"] = "gripper_link";
@@ -100,6 +102,8 @@ TEST(NodeConfig, ReadsEveryValueAndDerivesTheKinds) {
   EXPECT_DOUBLE_EQ(fruit.object.shape.stiffness, 0.8);
   EXPECT_DOUBLE_EQ(fruit.object.shape.beta, 0.4);
   EXPECT_DOUBLE_EQ(fruit.object.shape.mass_kg, 0.25);
+  EXPECT_TRUE(fruit.object.self_collision);
+  EXPECT_DOUBLE_EQ(fruit.object.self_rest_distance_m, 0.03);
   EXPECT_EQ(config.objects[2].object.kind, ObjectKind::kKinematic);
   EXPECT_EQ(config.objects[2].object.shape.mode, DeformationMode::kRigid);
   EXPECT_EQ(config.objects[2].follow_frame, "gripper_link");
@@ -120,6 +124,8 @@ TEST(NodeConfig, DefaultsFillWhatIsLeftOut) {
   EXPECT_EQ(config.objects[0].object.kind, ObjectKind::kDynamic);
   EXPECT_EQ(config.objects[0].object.shape.mode, DeformationMode::kLinear);
   EXPECT_DOUBLE_EQ(config.objects[0].object.contact_stiffness_n_per_m, 0.0);
+  EXPECT_FALSE(config.objects[0].object.self_collision);
+  EXPECT_DOUBLE_EQ(config.objects[0].object.self_rest_distance_m, 0.0);
   EXPECT_DOUBLE_EQ(config.force_marker_scale_m_per_n, 0.01);
   EXPECT_TRUE(config.scene.contact_forces);
   EXPECT_GE(config.scene.threads, 1);
@@ -185,6 +191,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadParamCase{"NegativeForceScale", [](XmlRpcValue& p) { p["markers"]["force_scale_m_per_n"] = -1.0; }, "markers.force_scale_m_per_n = -1"},
         BadParamCase{"NegativeContactStiffness", [](XmlRpcValue& p) { p["objects"][3]["contact_stiffness_n_per_m"] = -5.0; }, "objects[3].contact_stiffness_n_per_m = -5"},
         BadParamCase{"ContactStiffnessOfDynamic", [](XmlRpcValue& p) { p["objects"][1]["contact_stiffness_n_per_m"] = 100.0; }, "objects[1].contact_stiffness_n_per_m is read only by tracked objects (on_cloud track or register), not a dynamic one"},
+        BadParamCase{"SelfCollisionOfKinematic", [](XmlRpcValue& p) { p["objects"][2]["self_collision"] = true; }, "objects[2].self_collision needs a dynamic or tracked object, not a kinematic one"},
+        BadParamCase{"NegativeSelfRestDistance", [](XmlRpcValue& p) { p["objects"][1]["self_rest_distance_m"] = -0.01; }, "objects[1].self_rest_distance_m = -0.01"},
         BadParamCase{"ContactStiffnessOfKinematic", [](XmlRpcValue& p) { p["objects"][2]["contact_stiffness_n_per_m"] = 100.0; }, "objects[2].contact_stiffness_n_per_m is read only by tracked objects"},
         BadParamCase{"ZeroDiagnosticsPeriod", [](XmlRpcValue& p) { p["diagnostics"]["period_s"] = 0.0; }, "diagnostics.period_s = 0 must be in (0, 3600]"},
         BadParamCase{"ErrorBelowWarning", [](XmlRpcValue& p) { p["diagnostics"]["latency_error_ms"] = 10.0; }, "diagnostics.latency_error_ms is below latency_warn_ms"},

@@ -5,29 +5,10 @@
 #include <limits>
 
 #include "deformable_collision/core/query/detail/collision_query_kernels.h"
-#include "deformable_collision/core/query/detail/direction.h"
+#include "deformable_collision/core/query/detail/node_contact.h"
 
 namespace deformable_collision {
 namespace {
-
-/// SphereContact::error_bound_m of a contact of two nodes above the leaves, from their
-/// spheres, which hold a closest pair (x, y) of their points: (x + y) / 2 lies within
-/// (r_a + r_b) / 2 of the centres' midpoint, from which `position` lies |r_b - r_a| / 2
-/// along the normal; |x - y| lies between the spheres' gap (or 0) and the centres' distance
-/// plus both radii, and the depth's error is at most its distance to the farther end.
-double nodeContactErrorBound(const Sphere& a, const Sphere& b, double depth_m,
-                             double contact_distance_m) {
-  const double centres_m = (a.center - b.center).norm();
-  const double least_distance_m = std::max(0.0, centres_m - a.radius - b.radius);
-  const double greatest_distance_m = centres_m + a.radius + b.radius;
-  const double depth_error_m = std::max(depth_m - (contact_distance_m - greatest_distance_m),
-                                        contact_distance_m - least_distance_m - depth_m);
-  const double bound_m = std::max({a.radius, b.radius, depth_error_m});
-  // The few sums above round by far less than this margin, even 1e5 m from the origin.
-  const double magnitude_m =
-      std::max(a.center.cwiseAbs().maxCoeff(), b.center.cwiseAbs().maxCoeff());
-  return bound_m + 1e-12 * (bound_m + magnitude_m);
-}
 
 /// A leaf's points as coordinate arrays: its columns of the tree's leafPositions().
 struct LeafPoints {
@@ -397,22 +378,9 @@ struct HierarchyQuery::Descent {
   /// The contact of two nodes above the leaves, with the pair's least overlap as its depth.
   [[gnu::always_inline]] void addNodeContact(const PendingPair& pair, const NodeState& na,
                                              const NodeState& nb) const {
-    SphereContact contact;
-    contact.node_a = pair.node_a;
-    contact.node_b = pair.node_b;
-    contact.level = std::max(na.level, nb.level);
-    const Sphere& sa = na.sphere;
-    const Sphere& sb = nb.sphere;
-    contact.normal = directionFrom(sb.center, sa.center);
-    contact.depth_m = pair.least_overlap_m;
-    // Midway between the surfaces (grown by half the contact distance each) along the normal.
-    const Eigen::Vector3d surface_a =
-        sa.center - (sa.radius + 0.5 * contact_distance_m) * contact.normal;
-    const Eigen::Vector3d surface_b =
-        sb.center + (sb.radius + 0.5 * contact_distance_m) * contact.normal;
-    contact.position = 0.5 * (surface_a + surface_b);
-    contact.error_bound_m = nodeContactErrorBound(sa, sb, contact.depth_m, contact_distance_m);
-    contacts.add(contact);
+    contacts.add(detail::nodeContact(pair.node_a, pair.node_b, std::max(na.level, nb.level),
+                                     na.sphere, nb.sphere, pair.least_overlap_m,
+                                     contact_distance_m));
   }
 
   /// The contacts of a pair within reach at which the descent ends on both sides.

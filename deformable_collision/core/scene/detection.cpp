@@ -79,6 +79,24 @@ void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<s
     ++stats_.object_pairs_tested;
     queryPair(level, forward ? a : b, forward ? b : a, contacts, runs);
   }
+  appendSelfContacts(level, only_a, only_b, contacts);
+}
+
+void Scene::appendSelfContacts(int level, std::optional<std::size_t> only_a,
+                               std::optional<std::size_t> only_b,
+                               std::vector<SceneContact>& contacts) {
+  for (std::uint32_t index = 0; index < objects_.size(); ++index) {
+    Object& o = *objects_[index];
+    if (!o.rest_spheres || (only_a && *only_a != index) || (only_b && *only_b != index)) continue;
+    const double rest_distance_m =
+        std::max(o.config.self_rest_distance_m > 0.0
+                     ? o.config.self_rest_distance_m
+                     : kSelfRestContactDistances * config_.contact_distance_m,
+                 config_.contact_distance_m);
+    PairContacts self_contacts(contacts, index, index);
+    self_query_.collide(o.tree, *o.rest_spheres, level, config_.contact_distance_m, rest_distance_m,
+                        self_contacts, query_counters_);
+  }
 }
 
 void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second,
@@ -122,6 +140,10 @@ void Scene::detectCycleContacts(int level, bool ahead) {
       queryPair(level, a, b, contacts_, &contact_runs_);
     }
   }
+  // Self-contacts are queried every cycle, after every pair's: the response of pairs reads
+  // only their runs.
+  self_contacts_begin_ = contacts_.size();
+  if (!ahead) appendSelfContacts(level, std::nullopt, std::nullopt, contacts_);
   revisions_detected_ = revisions_;
   previous_level_ = level;
 }

@@ -173,6 +173,19 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
                                 std::to_string(config.contact_stiffness_n_per_m) +
                                 " must be finite and >= 0");
   }
+  if (!(config.self_rest_distance_m >= 0.0) || !std::isfinite(config.self_rest_distance_m)) {
+    throw std::invalid_argument("object '" + config.name + "': self_rest_distance_m = " +
+                                std::to_string(config.self_rest_distance_m) +
+                                " must be finite and >= 0");
+  }
+  if (config.self_collision &&
+      (config.kind == ObjectKind::kStatic || config.kind == ObjectKind::kKinematic)) {
+    throw std::invalid_argument("object '" + config.name +
+                                "': self_collision needs a tracked or "
+                                "dynamic object; a " +
+                                toString(config.kind) +
+                                " one moves only rigidly and never touches itself");
+  }
   std::unique_ptr<Object> made;
   try {
     made = std::make_unique<Object>(config, std::move(rest_points_m), config_.tree);
@@ -191,6 +204,7 @@ std::unique_ptr<Scene::Object> Scene::makeObject(const ObjectConfig& config,
     for (const auto& point : made->body.positions()) made->points_box.extend(point);
     made->slabs.measureOnDemand(made->tree, made->body.positions());
   }
+  if (config.self_collision) made->rest_spheres.emplace(made->tree);
   if (config.kind == ObjectKind::kKinematic) {
     made->rest_slabs.compute(made->tree, made->body.restPositions());
     made->slabs.pose(made->rest_slabs, Eigen::Isometry3d::Identity());
@@ -278,6 +292,8 @@ void Scene::cycle() {
   const auto detected = Clock::now();
 
   stats_.points_displaced = response_.respond();
+  stats_.points_displaced +=
+      self_response_.respond(objects_, contacts_, self_contacts_begin_, config_.friction);
   if (config_.contact_forces) forces_.assign(contacts_, contact_runs_, config_.dt_s);
   // Queries between cycles see the state after the response.
   refreshStaleTrees();

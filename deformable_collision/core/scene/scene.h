@@ -16,9 +16,11 @@
 #include "deformable_collision/core/query/broad_phase.h"
 #include "deformable_collision/core/query/collision_query.h"
 #include "deformable_collision/core/query/distance_query.h"
+#include "deformable_collision/core/query/self_collision_query.h"
 #include "deformable_collision/core/registration/cloud_registration.h"
 #include "deformable_collision/core/response/contact_forces.h"
 #include "deformable_collision/core/response/contact_response.h"
+#include "deformable_collision/core/response/self_contact_response.h"
 #include "deformable_collision/core/scene/registration_fitter.h"
 #include "deformable_collision/core/scene/tracked_fitter.h"
 #include "deformable_collision/core/shape_matching/shape_matching.h"
@@ -55,7 +57,19 @@ struct ObjectConfig {
   /// the object reads (a calibration); its contacts with objects the response never moves
   /// get that force (ContactForces). 0: those contacts report no force.
   double contact_stiffness_n_per_m = 0.0;
+  /// Tracked and dynamic objects: whether the object's contacts with itself (a fold, a
+  /// squeeze that closes a gap) are detected, and for a dynamic object resolved
+  /// (SelfCollisionQuery). Costs nothing when false.
+  bool self_collision = false;
+  /// Points closer than this at rest (m, >= 0) are neighbours in the material, never in
+  /// self-contact; 0: kSelfRestContactDistances contact distances. Never less than the
+  /// contact distance in force, so that an object at rest has no self-contacts.
+  double self_rest_distance_m = 0.0;
 };
+
+/// The rest distance of self-contacts when an object sets none, in contact distances: two
+/// points are then in self-contact only once squeezed to a quarter of their distance at rest.
+inline constexpr double kSelfRestContactDistances = 4.0;
 
 struct SceneConfig {
   Eigen::Vector3d gravity_mps2 = Eigen::Vector3d(0.0, 0.0, -9.81);
@@ -79,7 +93,8 @@ struct SceneConfig {
   int threads = 1;
 };
 
-/// A contact between two objects of the scene, at `contact.level`.
+/// A contact between two objects of the scene, or of an object with itself (object_a ==
+/// object_b, ObjectConfig::self_collision), at `contact.level`.
 struct SceneContact {
   std::uint32_t object_a = 0;
   std::uint32_t object_b = 0;
@@ -374,6 +389,10 @@ class Scene {
   /// them.
   void detect(int level, std::optional<std::size_t> only_a, std::optional<std::size_t> only_b,
               std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
+  /// Appends the self-contacts at `level` of the objects with self_collision that match the
+  /// filter (std::nullopt: any), object by object.
+  void appendSelfContacts(int level, std::optional<std::size_t> only_a,
+                          std::optional<std::size_t> only_b, std::vector<SceneContact>& contacts);
   /// Appends the contacts of one candidate pair, in this order, and its run if any.
   void queryPair(int level, std::uint32_t first, std::uint32_t second,
                  std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
@@ -425,9 +444,13 @@ class Scene {
   std::vector<Eigen::Vector3d> near_points_;    ///< registerCloud()'s, for pointsNearObject.
   QueryCounters query_counters_;
   CycleStats stats_;
+  SelfCollisionQuery self_query_;
+  /// Where the cycle's self-contacts begin in contacts_: after every pair's.
+  std::size_t self_contacts_begin_ = 0;
   ContactResponse response_;  ///< Reads objects_, contacts_, contact_runs_ and config_.
-  ContactForces forces_;      ///< Reads objects_.
-  WorkerPool pool_;           ///< The cycle's shape matching (stepDynamicObjects).
+  SelfContactResponse self_response_;
+  ContactForces forces_;  ///< Reads objects_.
+  WorkerPool pool_;       ///< The cycle's shape matching (stepDynamicObjects).
 };
 
 }  // namespace deformable_collision

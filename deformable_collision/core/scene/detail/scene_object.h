@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "deformable_collision/core/hierarchy/node_slabs.h"
+#include "deformable_collision/core/query/self_collision_query.h"
 #include "deformable_collision/core/registration/cloud_registration.h"
 #include "deformable_collision/core/registration/near_points_filter.h"
 #include "deformable_collision/core/response/detail/contact_memory.h"
@@ -51,6 +52,8 @@ struct SceneObject {
   NodeSlabs slabs;
   NodeSlabs rest_slabs;
   DentScratch dents;  ///< Dynamic objects.
+  /// Objects with self_collision: the rest spheres their self-contacts are told by.
+  std::optional<RestSpheres> rest_spheres;
   ContactMemory contact_memory;
   /// Tracked objects fitted to unordered clouds: made on the first such cloud.
   std::optional<CloudRegistration> registration;

@@ -1,0 +1,85 @@
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "deformable_collision/core/hierarchy/bounding_sphere.h"
+#include "deformable_collision/core/hierarchy/sphere_tree.h"
+#include "deformable_collision/core/query/collision_query.h"
+
+namespace deformable_collision {
+
+/// What a self-collision query reads of an object's rest shape: each node's rest sphere in
+/// the object's frame (SphereNode keeps it in its cluster's centred coordinates), so that a
+/// node pair's rest distances are bounded without reading its points.
+class RestSpheres {
+ public:
+  /// The rest spheres of `tree`'s nodes; the tree must outlive it.
+  explicit RestSpheres(const SphereTree& tree);
+
+  const Sphere& operator[](std::uint32_t node) const { return spheres_[node]; }
+  /// The rest position of the point at `slot` of the tree's pointIndices().
+  const Eigen::Vector3d& slotPoint(std::uint32_t slot) const {
+    return tree_->body().restPositions()[tree_->pointIndices()[slot]];
+  }
+
+ private:
+  const SphereTree* tree_;
+  std::vector<Sphere> spheres_;
+};
+
+/// Descends one sphere tree against itself for the pairs of its points that came within the
+/// contact distance although they lie more than `rest_distance_m` apart in the rest shape:
+/// an object folded or pressed onto itself. Points nearer in the rest shape are neighbours
+/// in the material, never a self-contact (docs/design.md, "Self-collision"). Holds its
+/// traversal stack, so that repeated queries allocate nothing.
+class SelfCollisionQuery {
+ public:
+  /// Adds to `contacts` the self-contacts of `tree` at `level` (-1 or >= maxLevel(): the
+  /// leaves), the node pairs a != b whose spheres come closer than `contact_distance_m` and
+  /// whose points all lie more than `rest_distance_m` apart at rest (from `rest`, which must
+  /// be `tree`'s). A pair at `level` whose rest spheres do not prove that is descended
+  /// further, down to its leaves, whose points are then tested pair by pair: every point
+  /// pair closer than the contact distance and farther than `rest_distance_m` at rest lies
+  /// under a contact's two nodes, at any level; at the leaves, a leaf pair (or a leaf with
+  /// itself) is a contact, at its closest such pair, exactly when it holds one. A pair whose
+  /// rest spheres lie within `rest_distance_m` of each other is never descended, nor one of
+  /// a cluster whose fit stretches no rest distance beyond that down to the contact
+  /// distance (a cluster at rest, moved rigidly or mildly deformed). The
+  /// depth of a contact above the leaves is its own spheres' overlap (grown by half the
+  /// contact distance each).
+  void collide(SphereTree& tree, const RestSpheres& rest, int level, double contact_distance_m,
+               double rest_distance_m, ContactSink& contacts, QueryCounters& counters);
+
+ private:
+  /// How a cluster's fit f can bring two points closer than at rest: for rest points whose
+  /// offsets from its rest centre of mass stay within e in each coordinate, |f(u) - f(v)| >=
+  /// (least_stretch - 2 e quadratic_norms) |u - v|; each of its points lies within
+  /// deviation_m of its fit. `linear` is the fit's A, for how far two clusters' fits part.
+  struct ClusterStretch {
+    double least_stretch = 0.0;
+    double quadratic_norms = 0.0;
+    double deviation_m = 0.0;
+    Eigen::Vector3d rest_center_m = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();
+  };
+  struct PendingPair {
+    std::uint32_t node_a = 0;
+    std::uint32_t node_b = 0;
+  };
+  void measureStretches(const ShapeMatchingBody& body);
+  /// One query's state and steps (self_collision_query.cpp).
+  struct Descent;
+
+  std::vector<PendingPair> stack_;
+  std::vector<ClusterStretch> stretches_;  ///< Of the tree queried, per cluster.
+  /// A node's sphere measured from its points in query `query`, where the tree's is loose.
+  struct MeasuredSphere {
+    Sphere sphere;
+    std::uint64_t query = 0;
+  };
+  std::vector<MeasuredSphere> measured_spheres_;
+  std::uint64_t query_serial_ = 0;
+};
+
+}  // namespace deformable_collision
