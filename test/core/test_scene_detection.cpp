@@ -24,29 +24,53 @@ namespace deformable_collision {
 namespace test {
 namespace {
 
-// The broad phase (sweep, boxes, root spheres) and the query together miss nothing: at the
-// leaves, a settling pile's contacts cover exactly the point pairs closer than the contact
-// distance of every pair of objects, walls and floor included.
-TEST(Scene, LeafContactsCoverEveryClosePointPairOfTheScene) {
+/// The pile scene of 3000 points; with `self_collision`, every soft object's self-contacts
+/// detected too (the same objects and start: the pile sets no velocities).
+std::unique_ptr<Scene> pile(bool self_collision) {
   auto scene = makeDemoScene(DemoScene::kPile, 3000);
+  if (!self_collision) return scene;
+  auto with_self = std::make_unique<Scene>(scene->config());
+  for (std::size_t i = 0; i < scene->objectCount(); ++i) {
+    ObjectConfig config = scene->objectConfig(i);
+    config.self_collision = config.kind == ObjectKind::kDynamic;
+    with_self->addObject(config, scene->body(i).restPositions());
+  }
+  return with_self;
+}
+
+// The broad phase (sweep, boxes, root spheres) and the queries together miss nothing: at the
+// leaves, a settling pile's contacts cover exactly the point pairs closer than the contact
+// distance of every pair of objects, walls and floor included, and with self-collision on,
+// of every soft object with itself more than the rest distance apart at rest.
+class LeafContactsTest : public ::testing::TestWithParam<bool> {};
+
+TEST_P(LeafContactsTest, CoverEveryClosePointPairOfTheScene) {
+  const bool self_collision = GetParam();
+  auto scene = pile(self_collision);
   for (int cycle = 0; cycle < 60; ++cycle) scene->cycle();
   std::vector<SceneContact> contacts;
   scene->contactsAt(scene->maxLevel(), std::nullopt, std::nullopt, contacts);
   const double reach_squared = std::pow(scene->config().contact_distance_m, 2);
+  const double rest_squared =
+      std::pow(kSelfRestContactDistances * scene->config().contact_distance_m, 2);
 
   using ObjectPointPair = std::tuple<std::size_t, std::size_t, std::uint32_t, std::uint32_t>;
   std::set<ObjectPointPair> truth;
   for (std::size_t a = 0; a < scene->objectCount(); ++a) {
-    for (std::size_t b = a + 1; b < scene->objectCount(); ++b) {
+    for (std::size_t b = a; b < scene->objectCount(); ++b) {
+      if (a == b && !scene->objectConfig(a).self_collision) continue;
       if (scene->objectConfig(a).kind == ObjectKind::kStatic &&
           scene->objectConfig(b).kind == ObjectKind::kStatic) {
         continue;
       }
       const Points& pa = scene->body(a).positions();
       const Points& pb = scene->body(b).positions();
+      const Points& rest = scene->body(a).restPositions();
       for (std::uint32_t i = 0; i < pa.size(); ++i) {
-        for (std::uint32_t j = 0; j < pb.size(); ++j) {
-          if ((pa[i] - pb[j]).squaredNorm() < reach_squared) truth.emplace(a, b, i, j);
+        for (std::uint32_t j = a == b ? i + 1 : 0; j < pb.size(); ++j) {
+          if ((pa[i] - pb[j]).squaredNorm() >= reach_squared) continue;
+          if (a == b && (rest[i] - rest[j]).squaredNorm() <= rest_squared) continue;
+          truth.emplace(a, b, i, j);
         }
       }
     }
@@ -54,8 +78,12 @@ TEST(Scene, LeafContactsCoverEveryClosePointPairOfTheScene) {
   ASSERT_GT(truth.size(), 100u) << "the pile must be touching";
   std::set<ObjectPointPair> covered;
   for (const SceneContact& c : contacts) {
-    ASSERT_LT(c.object_a, c.object_b);
-    ASSERT_TRUE(truth.count({c.object_a, c.object_b, c.contact.point_a, c.contact.point_b}))
+    ASSERT_LE(c.object_a, c.object_b);
+    const auto ordered = [&](std::uint32_t p, std::uint32_t q) {
+      return c.object_a == c.object_b && q < p ? ObjectPointPair{c.object_a, c.object_b, q, p}
+                                               : ObjectPointPair{c.object_a, c.object_b, p, q};
+    };
+    ASSERT_TRUE(truth.count(ordered(c.contact.point_a, c.contact.point_b)))
         << "a contact without a close point pair";
     const SphereTree& ta = scene->tree(c.object_a);
     const SphereTree& tb = scene->tree(c.object_b);
@@ -63,19 +91,27 @@ TEST(Scene, LeafContactsCoverEveryClosePointPairOfTheScene) {
     const SphereNode& nb = tb.node(c.contact.node_b);
     for (std::uint32_t s = na.first_point; s < na.first_point + na.point_count; ++s) {
       for (std::uint32_t t = nb.first_point; t < nb.first_point + nb.point_count; ++t) {
-        covered.emplace(c.object_a, c.object_b, ta.pointIndices()[s], tb.pointIndices()[t]);
+        covered.insert(ordered(ta.pointIndices()[s], tb.pointIndices()[t]));
       }
     }
   }
   std::size_t missed = 0;
   for (const auto& pair : truth) missed += covered.count(pair) == 0;
   EXPECT_EQ(missed, 0u) << "of " << truth.size() << " close point pairs";
-  // Object pairs come in the order of their objects, whatever order the sweep saw them in.
+  // Object pairs come in the order of their objects, whatever order the sweep saw them in;
+  // self-contacts after them.
+  const auto self_begin = std::find_if(contacts.begin(), contacts.end(), [](const SceneContact& c) {
+    return c.object_a == c.object_b;
+  });
+  EXPECT_TRUE(std::all_of(self_begin, contacts.end(),
+                          [](const SceneContact& c) { return c.object_a == c.object_b; }));
   EXPECT_TRUE(std::is_sorted(
-      contacts.begin(), contacts.end(), [](const SceneContact& x, const SceneContact& y) {
+      contacts.begin(), self_begin, [](const SceneContact& x, const SceneContact& y) {
         return std::tie(x.object_a, x.object_b) < std::tie(y.object_a, y.object_b);
       }));
 }
+
+INSTANTIATE_TEST_SUITE_P(SelfCollisionOffAndOn, LeafContactsTest, ::testing::Bool());
 
 // Two static objects cannot move each other, so the broad phase never pairs them: neither a
 // cycle nor a query at any level reports them, however much they overlap. A dynamic object

@@ -26,6 +26,21 @@ Points restU() { return bentIntoU(gridBox(61, 4, 4, 0.005), 0.5 * (0.025 + 0.015
 bool inUpperArm(const Eigen::Vector3d& rest) { return rest.x() < -0.01 && rest.y() > 0.0; }
 bool inLowerArm(const Eigen::Vector3d& rest) { return rest.x() < -0.01 && rest.y() < 0.0; }
 
+/// The least height of an upper arm's point over a lower arm's point below or above it
+/// (within half a point spacing across): negative once one arm is inside the other.
+double armsGap(const Scene& scene, std::size_t index) {
+  const auto& rest = scene.body(index).restPositions();
+  const auto& x = scene.body(index).positions();
+  double gap = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (!inUpperArm(rest[i])) continue;
+    for (std::size_t j = 0; j < x.size(); ++j) {
+      const Eigen::Vector2d across(x[i].x() - x[j].x(), x[i].z() - x[j].z());
+      if (inLowerArm(rest[j]) && across.norm() < 0.0025) gap = std::min(gap, x[i].y() - x[j].y());
+    }
+  }
+  return gap;
+}
 /// The U's arms thrown at each other, each 2 mm a step: discrete detection meets them
 /// before they pass (a point that crossed a whole face in one step would not be seen).
 struct ThrownU {
@@ -53,21 +68,7 @@ struct ThrownU {
     c.dt_s = dt_s;
     return c;
   }
-  /// The least height of an upper arm's point over a lower arm's point below or above it
-  /// (within half a point spacing across): negative once one arm is inside the other.
-  double armsGap() const {
-    const auto& rest = scene.body(index).restPositions();
-    const auto& x = scene.body(index).positions();
-    double gap = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      if (!inUpperArm(rest[i])) continue;
-      for (std::size_t j = 0; j < x.size(); ++j) {
-        const Eigen::Vector2d across(x[i].x() - x[j].x(), x[i].z() - x[j].z());
-        if (inLowerArm(rest[j]) && across.norm() < 0.0025) gap = std::min(gap, x[i].y() - x[j].y());
-      }
-    }
-    return gap;
-  }
+  double armsGap() const { return deformable_collision::armsGap(scene, index); }
   Scene scene;
   std::size_t index = 0;
 };
@@ -105,6 +106,49 @@ TEST_P(SelfCollisionStability, ArmsPressedTogetherStayFiniteAndApartFor1000Cycle
         << "cycle " << cycle;
     ASSERT_GT(u.armsGap(), -kContact) << "cycle " << cycle;
   }
+}
+
+// Cloth-like: a thin plate folded in two (its rest shape, halves 2.5 cm apart) lies on a floor
+// and a rigid press comes down until the stack has room for the two layers and one contact
+// distance between them, then holds it there.
+TEST_P(SelfCollisionStability, FoldedPlatePressedFlatKeepsItsHalvesApart) {
+  const double dt_s = GetParam();
+  Scene scene(ThrownU::config(dt_s));
+  constexpr double kLayer = 0.005;  // two layers of points 5 mm apart
+  constexpr double kRadius = 0.5 * (0.025 + kLayer);
+  const double bottom_m = -kRadius - 0.5 * kLayer;
+  ObjectConfig floor;
+  floor.name = "floor";
+  floor.kind = ObjectKind::kStatic;
+  Points floor_points = gridBox(50, 1, 25, 0.005);
+  for (auto& p : floor_points) p.y() = bottom_m - 0.5 * kContact;
+  scene.addObject(floor, floor_points);
+  ObjectConfig press = floor;
+  press.name = "press";
+  press.kind = ObjectKind::kKinematic;
+  const double press_from_m = kRadius + 0.5 * kLayer + kContact;
+  const double press_to_m = bottom_m + 2.0 * kLayer + 2.0 * kContact;
+  Points press_points = gridBox(50, 1, 25, 0.005);
+  for (auto& p : press_points) p.y() = press_from_m;
+  const std::size_t press_index = scene.addObject(press, press_points);
+  ObjectConfig plate;
+  plate.name = "plate";
+  plate.shape.clusters = 6;
+  plate.shape.stiffness = 0.05;
+  plate.self_collision = true;
+  const std::size_t index = scene.addObject(plate, bentIntoU(gridBox(41, 2, 21, kLayer), kRadius));
+  for (int cycle = 0; cycle < 1000; ++cycle) {
+    const double share = std::min(1.0, cycle / 100.0);
+    scene.setPose(press_index, Eigen::Isometry3d(Eigen::Translation3d(
+                                   0.0, share * (press_to_m - press_from_m), 0.0)));
+    scene.cycle();
+    const auto& positions = scene.body(index).positions();
+    ASSERT_TRUE(std::all_of(positions.begin(), positions.end(),
+                            [](const Eigen::Vector3d& p) { return p.allFinite(); }))
+        << "cycle " << cycle;
+    ASSERT_GT(armsGap(scene, index), 0.0) << "cycle " << cycle;
+  }
+  EXPECT_LT(armsGap(scene, index), 2.0 * kContact) << "the press must have closed the fold";
 }
 
 INSTANTIATE_TEST_SUITE_P(TimeSteps, SelfCollisionStability, ::testing::Values(0.01, 0.1));
