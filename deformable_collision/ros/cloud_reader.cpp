@@ -162,9 +162,29 @@ void CloudReader::retryAwaitingClouds(std::size_t index, const ros::Time& now) {
     // ROS time, so that a bag played slower than real time gives its tf as long as live.
     const bool last_try = (now - oldest.arrival_ros).toSec() >= config_.tf_wait_s;
     // tf arrives in time order: while the oldest cannot be placed, the newer wait too.
+    if (!last_try && followFramesBehind(index, oldest.cloud->header.stamp)) return;
     if (!processCloud(index, *oldest.cloud, oldest.arrival, last_try)) return;
     awaiting.pop_front();
   }
+}
+
+bool CloudReader::followFramesBehind(std::size_t index, const ros::Time& stamp) const {
+  // A tracked cloud that waited for tf comes from a sensor whose tf lags: the followed frames'
+  // poses at its stamp, which its cycle uses, come with its own, but tf2's listener inserts a
+  // TFMessage one transform at a time, so they are waited for too. Only frames whose pose at
+  // the stamp can still come: an unknown frame or one older than tf's buffer never will.
+  if (slots_[index].params.object.kind != ObjectKind::kTracked || stamp.isZero()) return false;
+  return std::any_of(slots_.begin(), slots_.end(), [&](const ObjectSlot& other) {
+    if (other.params.object.kind != ObjectKind::kKinematic) return false;
+    const std::string& frame = other.params.follow_frame;
+    if (tf_buffer_.canTransform(config_.fixed_frame, frame, stamp)) return false;
+    try {
+      return tf_buffer_.lookupTransform(config_.fixed_frame, frame, ros::Time(0)).header.stamp <
+             stamp;
+    } catch (const tf2::TransformException&) {
+      return false;
+    }
+  });
 }
 
 bool CloudReader::processCloud(std::size_t index, const sensor_msgs::PointCloud2& cloud,

@@ -111,6 +111,8 @@ class CloudReader {
   /// Why a cloud cannot ever be placed because tf knows no such frame; empty if it can be.
   std::string unknownFrameProblem(const ObjectSlot& slot, const std::string& frame) const;
   void retryAwaitingClouds(std::size_t slot, const ros::Time& now);
+  /// Whether a tracked object's waiting cloud must wait for a followed frame at `stamp` too.
+  bool followFramesBehind(std::size_t slot, const ros::Time& stamp) const;
   /// Notes ROS time `now`; if it went back (a looped bag), the waiting clouds, whose
   /// transforms belonged to the time before, are dropped.
   void watchRosTime(const ros::Time& now);
