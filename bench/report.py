@@ -685,10 +685,12 @@ def read_threads(results):
 def threads_report(results, rows):
     text = "# The cycle on several threads\n\n"
     text += ("`bench/bench_threads.cpp`: each scene made with `SceneConfig::threads` 1, 2 and 4, "
-             "settled 150 cycles, then the mean of 100 cycles per stage, in ms; of 3 runs, the one of the least whole cycle. Dynamic objects "
-             "step on the pool once they hold 32k points or more (S2; S1 and S3 stay on one "
-             "thread); detection and the response run on the cycle's thread. The states are the "
-             "same on every count (`test_scene_threads`).\n\n")
+             "settled 150 cycles, then the mean of 100 cycles per stage, in ms; of 3 runs, the one "
+             "of the least whole cycle. Dynamic objects step on the pool once they hold 32k "
+             "points, and object pairs are queried on it once a detection has 32 candidate "
+             "pairs (S2; S1 and S3 stay on one thread); the response runs on the cycle's "
+             "thread. The contacts and states are the same on every count "
+             "(`test_scene_threads`).\n\n")
     text += table(["scene", "threads", "shape matching", "detection", "response", "whole cycle"],
                   [(THREADS_SCENES.get(scene, scene), threads,
                     f"{float(r['shape_matching_ms']):.3f}", f"{float(r['detection_ms']):.3f}",

@@ -133,8 +133,6 @@ TEST(Scene, SteadyStateCyclesAllocateNothing) {
   EXPECT_GT(gripper.scene->stats().contacts, 0u) << "the jaws must hold the fruit";
 }
 
-// The same on two threads: a fruit of 40k points steps on the pool (Scene::kPointsWorthSharing),
-// whose loops allocate nothing.
 // A soft U pressing its arms together: the self-collision query and response.
 TEST(Scene, SteadySelfContactCyclesAllocateNothing) {
   SceneConfig config;
@@ -166,6 +164,8 @@ TEST(Scene, SteadySelfContactCyclesAllocateNothing) {
   EXPECT_GT(contacts, 20u) << "the arms must press on each other";
 }
 
+// The same on two threads: a fruit of 40k points steps on the pool (Scene::kPointsWorthSharing),
+// whose loops allocate nothing.
 TEST(Scene, SteadyStateCyclesOnTwoThreadsAllocateNothing) {
   SceneConfig config;
   config.threads = 2;
@@ -177,6 +177,17 @@ TEST(Scene, SteadyStateCyclesOnTwoThreadsAllocateNothing) {
   };
   EXPECT_EQ(allocationsAfterWarmUp(300, 320, step), 0);
   EXPECT_GT(scene->stats().contacts, 0u) << "the jaws must hold the fruit";
+}
+
+// The pile on two threads: its pairs are queried on the pool (Scene::kPairsWorthSharing), each
+// thread with its own contact list.
+TEST(Scene, SteadyPileCyclesOnTwoThreadsAllocateNothing) {
+  SceneConfig config;
+  config.threads = 2;
+  std::unique_ptr<Scene> scene = makeDemoScene(DemoScene::kPile, 0, config);
+  scene->setLevel(-1);
+  EXPECT_EQ(allocationsAfterWarmUp(300, 320, [&](int) { scene->cycle(); }), 0);
+  EXPECT_GT(scene->stats().object_pairs_tested, 300u);
 }
 
 // A ball sliding over a static floor reaches new nodes of the floor every cycle, whose slabs

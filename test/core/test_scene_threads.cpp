@@ -1,17 +1,24 @@
-// A cycle's shape matching on several threads: the same contacts and states, bit for bit,
-// as on one, for every built-in scene; a bad thread count is refused naming the key.
+// A cycle on several threads (shape matching, the pair queries): the same contacts and
+// states, bit for bit, as on one, for built-in scenes and for a grid of tracked objects whose
+// pairs are partly kept and partly queried, ahead of cycles too; a bad thread count is
+// refused naming the key.
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <memory>
+#include <random>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/scenes/byte_digest.h"
 #include "deformable_collision/scenes/demo_scenes.h"
+#include "deformable_collision/scenes/shapes.h"
+#include "scene_test_support.h"
 
 namespace deformable_collision {
+namespace test {
 namespace {
 
 /// The contacts of `cycles` cycles and the final points of every object, as one digest.
@@ -45,6 +52,90 @@ TEST(SceneThreads, GiveTheStatesOfOneThread) {
   }
 }
 
+void addContacts(const Scene& scene, ByteDigest& digest) {
+  for (const SceneContact& contact : scene.contacts()) {
+    digest.add(contact.object_a);
+    digest.add(contact.object_b);
+    digest.add(contact.contact.node_a);
+    digest.add(contact.contact.node_b);
+    digest.add(contact.contact.position);
+    digest.add(contact.contact.depth_m);
+    digest.add(contact.force_n);
+  }
+}
+
+/// A 7 x 7 grid of tracked boxes and ellipsoids, each touching its neighbours, on a floor,
+/// with soft balls dropped on it; clouds come for a few objects at a time, some detected ahead
+/// of the cycle: enough candidate pairs to share, some kept and some queried each cycle.
+/// The digest of the contacts and states of `cycles` cycles, and the pairs kept and queried.
+struct GridRun {
+  std::uint64_t digest = 0;
+  std::size_t pairs_reused = 0;
+  std::size_t pairs_tested = 0;
+};
+
+GridRun trackedGrid(int level, int threads, int cycles) {
+  SceneConfig config;
+  config.threads = threads;
+  auto scene = sceneOnFloor(level, config);
+  std::vector<Points> rests;
+  ObjectConfig tracked;
+  tracked.kind = ObjectKind::kTracked;
+  for (int i = 0; i < 49; ++i) {
+    tracked.name = "tracked_" + std::to_string(i);
+    const std::uint64_t seed = 40 + static_cast<std::uint64_t>(i);
+    Points points = i % 3 == 0 ? sampleEllipsoid(300, {0.05, 0.05, 0.05}, seed)
+                               : sampleBox(300, {0.05, 0.05, 0.05}, seed);
+    const Eigen::Vector3d at(0.095 * (i % 7 - 3), 0.095 * (i / 7 - 3), 0.055);
+    for (auto& p : points) p += at;
+    rests.push_back(points);
+    scene->addObject(tracked, points);
+  }
+  ObjectConfig ball;
+  ball.shape.mode = DeformationMode::kQuadratic;
+  ball.shape.stiffness = 0.4;
+  for (int i = 0; i < 4; ++i) {
+    ball.name = "ball_" + std::to_string(i);
+    Points points = sampleEllipsoid(400, {0.04, 0.05, 0.04}, 90 + static_cast<std::uint64_t>(i));
+    for (auto& p : points) p += Eigen::Vector3d(0.1 * i - 0.15, 0.03 * i, 0.16);
+    scene->addObject(ball, points);
+  }
+  std::mt19937_64 rng(7);
+  GridRun run;
+  ByteDigest digest;
+  for (int c = 0; c < cycles; ++c) {
+    for (int k = 0; k < 5; ++k) {
+      const std::size_t object = 1 + rng() % rests.size();
+      Points observed = rests[object - 1];
+      const double lift_m = 1e-4 * static_cast<double>(rng() % 20);
+      for (auto& p : observed) p.z() += lift_m;
+      scene->observe(object, observed);
+      if (rng() % 3 == 0) scene->detectAhead();
+    }
+    scene->cycle();
+    addContacts(*scene, digest);
+    run.pairs_reused += scene->stats().object_pairs_reused;
+    run.pairs_tested += scene->stats().object_pairs_tested;
+  }
+  for (std::size_t i = 0; i < scene->objectCount(); ++i) {
+    for (const auto& p : scene->body(i).positions()) digest.add(p);
+  }
+  run.digest = digest.value();
+  return run;
+}
+
+TEST(SceneThreads, GiveThePairContactsOfOneThreadWhenPairsAreKept) {
+  for (const int level : {-1, 3}) {
+    SCOPED_TRACE("level " + std::to_string(level));
+    const GridRun one = trackedGrid(level, 1, 30);
+    EXPECT_EQ(trackedGrid(level, 2, 30).digest, one.digest);
+    EXPECT_EQ(trackedGrid(level, 4, 30).digest, one.digest);
+    // Both kinds of pair were there, and enough for the pool (Scene::kPairsWorthSharing).
+    EXPECT_GT(one.pairs_reused, 30u * 20u);
+    EXPECT_GT(one.pairs_tested - one.pairs_reused, 30u * 20u);
+  }
+}
+
 TEST(SceneThreads, RefuseACountOutOfRangeNamingIt) {
   SceneConfig config;
   config.threads = 0;
@@ -57,4 +148,5 @@ TEST(SceneThreads, RefuseACountOutOfRangeNamingIt) {
 }
 
 }  // namespace
+}  // namespace test
 }  // namespace deformable_collision

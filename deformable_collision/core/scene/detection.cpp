@@ -4,6 +4,7 @@
 
 #include "deformable_collision/core/scene/scene.h"
 
+#include "deformable_collision/core/scene/detail/pair_query_lanes.h"
 #include "deformable_collision/core/scene/detail/scene_object.h"
 
 namespace deformable_collision {
@@ -77,7 +78,11 @@ void Scene::detect(int level, std::optional<std::size_t> only_a, std::optional<s
     const bool backward = !forward && matches(b, a);
     if (!forward && !backward) continue;
     ++stats_.object_pairs_tested;
-    queryPair(level, forward ? a : b, forward ? b : a, contacts, runs);
+    const std::uint32_t first = forward ? a : b;
+    const std::uint32_t second = forward ? b : a;
+    const std::size_t begin = contacts.size();
+    queryPair(level, first, second, query_, query_counters_, contacts);
+    if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
   }
   appendSelfContacts(level, only_a, only_b, contacts);
 }
@@ -99,16 +104,14 @@ void Scene::appendSelfContacts(int level, std::optional<std::size_t> only_a,
   }
 }
 
-void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second,
-                      std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs) {
+void Scene::queryPair(int level, std::uint32_t first, std::uint32_t second, HierarchyQuery& query,
+                      QueryCounters& counters, std::vector<SceneContact>& contacts) {
   PairContacts pair_contacts(contacts, first, second);
-  const std::size_t begin = contacts.size();
   Object& a = *objects_[first];
   Object& b = *objects_[second];
   const PairSlabs slabs{a.slabs.empty() ? nullptr : &a.slabs, b.slabs.empty() ? nullptr : &b.slabs};
-  query_.collide(a.tree, b.tree, queryLevel(level, a.tree, a.config.kind, b.tree, b.config.kind),
-                 config_.contact_distance_m, pair_contacts, query_counters_, slabs);
-  if (runs && contacts.size() > begin) runs->push_back({first, second, begin, contacts.size()});
+  query.collide(a.tree, b.tree, queryLevel(level, a.tree, a.config.kind, b.tree, b.config.kind),
+                config_.contact_distance_m, pair_contacts, counters, slabs);
 }
 
 // Two objects whose points did not change since the last detection have the same contacts
@@ -126,19 +129,28 @@ void Scene::detectCycleContacts(int level, bool ahead) {
   // Unset until this detection is complete: one that throws leaves nothing to reuse.
   previous_level_.reset();
   const auto& candidate_pairs = sweepAndPrune();
-  const auto unchanged = [this](std::uint32_t object) {
-    return objects_[object]->revision <= revisions_detected_;
-  };
+  // A scene of a few pairs stays on this thread: handing them out costs more than it saves.
+  const bool shared = pool_.threads() > 1 && candidate_pairs.size() >= kPairsWorthSharing;
+  if (shared) queryPairsOnPool(level, candidate_pairs, ahead, reusable);
   std::size_t cursor = 0;
+  std::size_t pooled = 0;
   for (const auto& [a, b] : candidate_pairs) {
-    if (ahead && (objects_[a]->dynamic() || objects_[b]->dynamic())) continue;
+    if (leftToCycle(a, b, ahead)) continue;
     if (!ahead) ++stats_.object_pairs_tested;
-    if (reusable && unchanged(a) && unchanged(b)) {
+    if (keepsContacts(a, b, reusable)) {
       if (!ahead) ++stats_.object_pairs_reused;
       reusePreviousContacts(a, b, cursor);
-    } else {
-      queryPair(level, a, b, contacts_, &contact_runs_);
+      continue;
     }
+    const std::size_t begin = contacts_.size();
+    if (shared) {
+      contacts_.insert(contacts_.end(), pair_lanes_->contactsBegin(pooled),
+                       pair_lanes_->contactsEnd(pooled));
+      ++pooled;
+    } else {
+      queryPair(level, a, b, query_, query_counters_, contacts_);
+    }
+    if (contacts_.size() > begin) contact_runs_.push_back({a, b, begin, contacts_.size()});
   }
   // Self-contacts are queried every cycle, after every pair's: the response of pairs reads
   // only their runs.
@@ -146,6 +158,31 @@ void Scene::detectCycleContacts(int level, bool ahead) {
   if (!ahead) appendSelfContacts(level, std::nullopt, std::nullopt, contacts_);
   revisions_detected_ = revisions_;
   previous_level_ = level;
+}
+
+bool Scene::leftToCycle(std::uint32_t a, std::uint32_t b, bool ahead) const {
+  return ahead && (objects_[a]->dynamic() || objects_[b]->dynamic());
+}
+
+bool Scene::keepsContacts(std::uint32_t a, std::uint32_t b, bool reusable) const {
+  return reusable && objects_[a]->revision <= revisions_detected_ &&
+         objects_[b]->revision <= revisions_detected_;
+}
+
+void Scene::queryPairsOnPool(int level, const std::vector<BroadPhase::Pair>& candidate_pairs,
+                             bool ahead, bool reusable) {
+  pair_lanes_->clear(objects_.size());
+  for (const auto& [a, b] : candidate_pairs) {
+    if (!leftToCycle(a, b, ahead) && !keepsContacts(a, b, reusable)) pair_lanes_->add(a, b);
+  }
+  pair_lanes_->run(pool_, [&](std::uint32_t a, std::uint32_t b, HierarchyQuery& query,
+                              QueryCounters& counters, std::vector<SceneContact>& contacts) {
+    queryPair(level, a, b, query, counters, contacts);
+  });
+  const QueryCounters pooled = pair_lanes_->counters();
+  query_counters_.node_pairs_tested += pooled.node_pairs_tested;
+  query_counters_.leaf_pairs_tested += pooled.leaf_pairs_tested;
+  query_counters_.point_tests += pooled.point_tests;
 }
 
 void Scene::reusePreviousContacts(std::uint32_t first, std::uint32_t second, std::size_t& cursor) {

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "deformable_collision/core/scene/detail/pair_query_lanes.h"
 #include "deformable_collision/core/scene/detail/scene_object.h"
 
 namespace deformable_collision {
@@ -51,7 +52,8 @@ Scene::Scene(const SceneConfig& config)
       planes_gap_m_(config.contact_distance_m),
       response_(objects_, contacts_, contact_runs_, config_),
       forces_(objects_),
-      pool_(validThreads(config.threads)) {
+      pool_(validThreads(config.threads)),
+      pair_lanes_(std::make_unique<detail::PairQueryLanes>()) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument(what); };
   std::ostringstream value;
   if (!config.gravity_mps2.allFinite()) fail("SceneConfig.gravity_mps2 is not finite");

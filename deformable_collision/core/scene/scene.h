@@ -27,8 +27,9 @@
 
 namespace deformable_collision {
 namespace detail {
-struct SceneObject;  // Internal (scene/detail/scene_object.h).
-}
+struct SceneObject;    // Internal (scene/detail/scene_object.h).
+class PairQueryLanes;  // Internal (scene/detail/pair_query_lanes.h).
+}  // namespace detail
 
 /// How an object's points move.
 enum class ObjectKind {
@@ -393,9 +394,22 @@ class Scene {
   /// filter (std::nullopt: any), object by object.
   void appendSelfContacts(int level, std::optional<std::size_t> only_a,
                           std::optional<std::size_t> only_b, std::vector<SceneContact>& contacts);
-  /// Appends the contacts of one candidate pair, in this order, and its run if any.
-  void queryPair(int level, std::uint32_t first, std::uint32_t second,
-                 std::vector<SceneContact>& contacts, std::vector<ContactRun>* runs);
+  /// Appends the contacts of one candidate pair, in this order, found with `query`; safe on
+  /// several threads at once for pairs that share no object.
+  void queryPair(int level, std::uint32_t first, std::uint32_t second, HierarchyQuery& query,
+                 QueryCounters& counters, std::vector<SceneContact>& contacts);
+  /// Whether a detection leaves the pair of objects a and b to the cycle (`ahead`: one ahead
+  /// of it, which leaves the pairs with a dynamic object).
+  bool leftToCycle(std::uint32_t a, std::uint32_t b, bool ahead) const;
+  /// Whether the pair keeps its contacts of the last detection (`reusable`: at this level):
+  /// neither object changed since.
+  bool keepsContacts(std::uint32_t a, std::uint32_t b, bool reusable) const;
+  /// Queries on the pool's threads, into pair_lanes_, the candidate pairs that the detection
+  /// neither leaves to the cycle nor keeps.
+  void queryPairsOnPool(int level, const std::vector<BroadPhase::Pair>& candidate_pairs, bool ahead,
+                        bool reusable);
+  /// Below this many candidate pairs a detection stays on the cycle's thread.
+  static constexpr std::size_t kPairsWorthSharing = 32;
   /// Spheres updated since each object's tree last restarted, over all objects.
   std::size_t spheresUpdated() const;
   /// The cycle's detection into contacts_ and contact_runs_: a pair of objects neither of
@@ -450,7 +464,9 @@ class Scene {
   ContactResponse response_;  ///< Reads objects_, contacts_, contact_runs_ and config_.
   SelfContactResponse self_response_;
   ContactForces forces_;  ///< Reads objects_.
-  WorkerPool pool_;       ///< The cycle's shape matching (stepDynamicObjects).
+  WorkerPool pool_;       ///< The cycle's shape matching and pair queries.
+  /// The pair queries of a cycle's detection on pool_.
+  std::unique_ptr<detail::PairQueryLanes> pair_lanes_;
 };
 
 }  // namespace deformable_collision
