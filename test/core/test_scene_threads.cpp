@@ -21,6 +21,19 @@ namespace deformable_collision {
 namespace test {
 namespace {
 
+/// The contacts of a cycle, their forces too.
+void addContacts(const Scene& scene, ByteDigest& digest) {
+  for (const SceneContact& contact : scene.contacts()) {
+    digest.add(contact.object_a);
+    digest.add(contact.object_b);
+    digest.add(contact.contact.node_a);
+    digest.add(contact.contact.node_b);
+    digest.add(contact.contact.position);
+    digest.add(contact.contact.depth_m);
+    digest.add(contact.force_n);
+  }
+}
+
 /// The contacts of `cycles` cycles and the final points of every object, as one digest.
 std::uint64_t trajectory(DemoScene kind, std::size_t points, int threads, int cycles) {
   SceneConfig config;
@@ -30,11 +43,7 @@ std::uint64_t trajectory(DemoScene kind, std::size_t points, int threads, int cy
   for (int c = 0; c < cycles; ++c) {
     driveDemoScene(kind, *scene, c * scene->config().dt_s);
     scene->cycle();
-    for (const SceneContact& contact : scene->contacts()) {
-      digest.add(contact.contact.node_a);
-      digest.add(contact.contact.node_b);
-      digest.add(contact.contact.depth_m);
-    }
+    addContacts(*scene, digest);
   }
   for (std::size_t i = 0; i < scene->objectCount(); ++i) {
     for (const auto& p : scene->body(i).positions()) digest.add(p);
@@ -49,18 +58,6 @@ TEST(SceneThreads, GiveTheStatesOfOneThread) {
     const std::uint64_t one = trajectory(kind, 40000, 1, 40);
     EXPECT_EQ(trajectory(kind, 40000, 2, 40), one);
     EXPECT_EQ(trajectory(kind, 40000, 4, 40), one);
-  }
-}
-
-void addContacts(const Scene& scene, ByteDigest& digest) {
-  for (const SceneContact& contact : scene.contacts()) {
-    digest.add(contact.object_a);
-    digest.add(contact.object_b);
-    digest.add(contact.contact.node_a);
-    digest.add(contact.contact.node_b);
-    digest.add(contact.contact.position);
-    digest.add(contact.contact.depth_m);
-    digest.add(contact.force_n);
   }
 }
 

@@ -1,6 +1,7 @@
 // The contact response: each pair of touching objects is pushed apart along one normal and
 // stops approaching, objects nearer to a fixed support acting as fixed (shock propagation).
 #include <algorithm>
+#include <atomic>
 #include <limits>
 
 #include "deformable_collision/core/response/detail/resolving_pair.h"
@@ -71,7 +72,7 @@ void ContactResponse::rankSupport() {
   }
 }
 
-std::size_t ContactResponse::respond() {
+std::size_t ContactResponse::respond(WorkerPool& pool) {
   // Objects are separated to half the contact distance: resting objects stay in contact
   // (closer than the contact distance) and are still held apart.
   ++cycle_count_;
@@ -98,10 +99,30 @@ std::size_t ContactResponse::respond() {
       object.velocity_after = object.mean_velocity + object.velocity_change;
     }
   }
-  for (auto& object : objects_) {
-    if (object->dynamic()) applyObjectResponse(*object);
-  }
+  applyObjectResponses(pool);
   return points_displaced_;
+}
+
+void ContactResponse::applyObjectResponses(WorkerPool& pool) {
+  std::atomic<std::size_t> displaced{0};
+  const auto apply = [&](std::size_t i) {
+    Object& object = *objects_[i];
+    if (object.dynamic())
+      displaced.fetch_add(applyObjectResponse(object), std::memory_order_relaxed);
+  };
+  // A few objects stay on this thread: waking the workers would cost more than they share.
+  if (pool.threads() > 1 && objects_.size() >= kObjectsWorthSharing) {
+    pool.forEach(objects_.size(), apply);
+  } else {
+    for (std::size_t i = 0; i < objects_.size(); ++i) apply(i);
+  }
+  points_displaced_ += displaced.load();
+  if (!config_.contact_forces) return;
+  // In the objects' order, as one thread would add them: the runs' sums are the same bits.
+  for (auto& object : objects_) {
+    for (const auto& e : object->dents.run_impulses) addImpulse(e.run, *object, e.impulse_ns);
+    object->dents.run_impulses.clear();
+  }
 }
 
 void ContactResponse::readMeanVelocities() {
@@ -308,12 +329,12 @@ void ContactResponse::stopApproachToFixedPartners() {
   }
 }
 
-void ContactResponse::applyObjectResponse(Object& object) {
+std::size_t ContactResponse::applyObjectResponse(Object& object) const {
   applyPendingDents(object);
   const bool moved = object.translation.squaredNorm() > 0.0 ||
                      object.velocity_change.squaredNorm() > 0.0 ||
                      !object.dents.displaced_points.empty();
-  if (!moved) return;
+  if (!moved) return 0;
   // An object moves at most the contact distance per response beyond what this cycle's
   // step moved it, so it cannot jump past a layer thinner than that before the layer's
   // contacts are seen; deeper overlaps take a few cycles. The step's own motion can always
@@ -324,6 +345,7 @@ void ContactResponse::applyObjectResponse(Object& object) {
   const double reach = object.translation.norm();
   if (reach > allowed) object.translation *= allowed / reach;
   object.dents.averageDisplacements();
+  std::size_t displaced = 0;
   if (object.dents.displacements.empty()) {
     // The points make the move in the next step's pass over them.
     object.body.deferRigidMove(object.translation, object.velocity_change);
@@ -334,15 +356,16 @@ void ContactResponse::applyObjectResponse(Object& object) {
     const detail::RigidVelocityChange balance = object.dents.balanceVelocityChanges(
         object.body.positions(), motion, object.body.pointMassKg(),
         (bound.center - motion.center).norm() + bound.radius);
-    if (config_.contact_forces) addDentImpulses(object, balance.paid);
+    if (config_.contact_forces) payDentImpulses(object, balance.paid);
     object.body.moveRigidly(object.translation, object.velocity_change - balance.velocity,
                             -balance.spin, balance.center + object.translation);
-    points_displaced_ += object.dents.displacements.size();
+    displaced = object.dents.displacements.size();
     object.body.displacePoints(object.dents.displacements);
   }
   object.translation.setZero();
   object.velocity_change.setZero();
   object.stale = true;
+  return displaced;
 }
 
 void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {

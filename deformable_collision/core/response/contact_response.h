@@ -6,6 +6,8 @@
 #include <memory>
 #include <vector>
 
+#include "deformable_collision/core/common/worker_pool.h"
+
 namespace deformable_collision {
 
 struct SceneConfig;
@@ -47,9 +49,11 @@ class ContactResponse {
   ContactResponse& operator=(const ContactResponse&) = delete;
 
   /// Moves and dents the dynamic objects of the runs' pairs and changes their velocities;
-  /// marks what it moved stale.
+  /// marks what it moved stale. The pairs are resolved on this thread; the objects, each
+  /// touching only its own body, are then moved and dented on `pool`'s threads when they are
+  /// many: the same bits on any count.
   /// @return the number of points displaced by dents.
-  std::size_t respond();
+  std::size_t respond(WorkerPool& pool);
 
  private:
   using Object = detail::SceneObject;
@@ -117,17 +121,23 @@ class ContactResponse {
   void exchangeVelocity(const VelocityExchange& exchange);
   /// Once every pair is resolved: no object leaves moving into a fixed one it was pushed off.
   void stopApproachToFixedPartners();
-  /// Moves a dynamic object by its pairs' pushes and dents it where they need more.
-  void applyObjectResponse(Object& object);
+  /// Moves a dynamic object by its pairs' pushes and dents it where they need more; reads
+  /// and writes that object alone. Returns the points it displaced.
+  std::size_t applyObjectResponse(Object& object) const;
+  /// applyObjectResponse() for every dynamic object, then the dents' momentum into the runs
+  /// in the objects' order.
+  void applyObjectResponses(WorkerPool& pool);
+  /// Below this many objects the response stays on the calling thread.
+  static constexpr std::size_t kObjectsWorthSharing = 32;
   /// Dents the pending nodes by what their contacts need beyond the object's move, once
   /// every pair has added to that move.
-  void applyPendingDents(Object& object);
+  void applyPendingDents(Object& object) const;
   /// Sums per run the momentum the object's dented points' stops exchange with the partners
-  /// (dent_impulses_), before the other points pay for them.
-  void sumDentImpulses(const Object& object);
-  /// Adds those to the runs, less the share of `paid` (per unit point mass) the object's
-  /// other points paid for them.
-  void addDentImpulses(const Object& object, const Eigen::Vector3d& paid);
+  /// (its dents' run_impulses), before the other points pay for them.
+  static void sumDentImpulses(Object& object);
+  /// Takes from those the share of `paid` (per unit point mass) the object's other points
+  /// paid for them.
+  static void payDentImpulses(Object& object, const Eigen::Vector3d& paid);
   /// Adds `impulse` on `object` to the run: on its a, or against its b.
   void addImpulse(std::uint32_t run, const Object& object, const Eigen::Vector3d& impulse);
   void resolvePair(Object& a, Object& b, std::uint32_t run);
@@ -194,12 +204,6 @@ class ContactResponse {
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
   std::vector<ReachingNode> lowest_descent_;
-  /// One object's dent momentum per run (sumDentImpulses).
-  struct RunImpulse {
-    std::uint32_t run;
-    Eigen::Vector3d impulse_ns;
-  };
-  std::vector<RunImpulse> dent_impulses_;
   std::size_t points_displaced_ = 0;  ///< By this response's dents.
   std::uint64_t cycle_count_ = 1;
   std::uint64_t pair_serial_ = 0;  ///< Counts resolvePair calls: keys each pair's dents.

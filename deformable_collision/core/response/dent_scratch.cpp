@@ -18,6 +18,8 @@ void DentScratch::reserve(std::size_t point_count, std::size_t node_count) {
   displacements.reserve(point_count);
   dent_of_node.assign(node_count, 0);
   dent_pair_of_node.assign(node_count, 0);
+  // Runs are partners: more than a pile's object touches, so that none grows in a cycle.
+  run_impulses.reserve(kRunsReserved);
 }
 
 // The contacts of one node with one partner share a direction (the pair's normal, or a

@@ -106,7 +106,7 @@ void ContactResponse::queueDents(const ResolvingPair& pair) {
 // after this response's whole-object changes (velocity_after): a point measured before its
 // object's own change would be stopped twice, and a resting object would leave each cycle
 // moving up.
-void ContactResponse::applyPendingDents(Object& object) {
+void ContactResponse::applyPendingDents(Object& object) const {
   for (const DentScratch::PendingDent& pending : object.dents.pending) {
     // The partner's velocity after the response, less this object's own change: what a
     // point's current velocity is compared with.
@@ -123,29 +123,34 @@ void ContactResponse::applyPendingDents(Object& object) {
 // points pay back part of it (balanceVelocityChanges), the rest of the partners' momentum.
 // That part is shared among the runs by the size of their stops: a resting object's single
 // support takes it all back, and two jaws squeezing from opposite sides pay each other.
-void ContactResponse::sumDentImpulses(const Object& object) {
-  dent_impulses_.clear();
+void ContactResponse::sumDentImpulses(Object& object) {
+  std::vector<DentScratch::RunImpulse>& impulses = object.dents.run_impulses;
+  impulses.clear();
   const double mass = object.body.pointMassKg();
   for (const PointDisplacement& d : object.dents.displacements) {
     const std::uint32_t run = object.dents.run_of_point[d.point];
-    auto entry = std::find_if(dent_impulses_.begin(), dent_impulses_.end(),
-                              [run](const RunImpulse& e) { return e.run == run; });
-    if (entry == dent_impulses_.end()) {
-      dent_impulses_.push_back({run, Eigen::Vector3d::Zero()});
-      entry = dent_impulses_.end() - 1;
+    auto entry = std::find_if(impulses.begin(), impulses.end(),
+                              [run](const DentScratch::RunImpulse& e) { return e.run == run; });
+    if (entry == impulses.end()) {
+      impulses.push_back({run, Eigen::Vector3d::Zero()});
+      entry = impulses.end() - 1;
     }
     entry->impulse_ns += mass * d.velocity_change_mps;
   }
 }
 
-void ContactResponse::addDentImpulses(const Object& object, const Eigen::Vector3d& paid) {
+void ContactResponse::payDentImpulses(Object& object, const Eigen::Vector3d& paid) {
+  std::vector<DentScratch::RunImpulse>& impulses = object.dents.run_impulses;
   const double mass = object.body.pointMassKg();
   double total_norm = 0.0;
-  for (const RunImpulse& e : dent_impulses_) total_norm += e.impulse_ns.norm();
-  if (total_norm == 0.0) return;
-  for (const RunImpulse& e : dent_impulses_) {
+  for (const DentScratch::RunImpulse& e : impulses) total_norm += e.impulse_ns.norm();
+  if (total_norm == 0.0) {
+    impulses.clear();
+    return;
+  }
+  for (DentScratch::RunImpulse& e : impulses) {
     const double share = e.impulse_ns.norm() / total_norm;
-    addImpulse(e.run, object, e.impulse_ns - share * mass * paid);
+    e.impulse_ns -= share * mass * paid;
   }
 }
 

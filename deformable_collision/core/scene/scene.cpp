@@ -293,7 +293,7 @@ void Scene::cycle() {
   const std::size_t spheres_after = spheresUpdated();
   const auto detected = Clock::now();
 
-  stats_.points_displaced = response_.respond();
+  stats_.points_displaced = response_.respond(pool_);
   stats_.points_displaced +=
       self_response_.respond(objects_, contacts_, self_contacts_begin_, config_.friction);
   if (config_.contact_forces) forces_.assign(contacts_, contact_runs_, config_.dt_s);

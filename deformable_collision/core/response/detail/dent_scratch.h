@@ -78,6 +78,14 @@ struct DentScratch {
   std::vector<std::uint32_t> run_of_point;
   std::vector<std::uint32_t> displaced_points;
   std::vector<PointDisplacement> displacements;
+  /// The momentum the dented points' stops exchange with each run's partner, less what the
+  /// object's other points paid back: added to the runs once every object is dented.
+  struct RunImpulse {
+    std::uint32_t run;
+    Eigen::Vector3d impulse_ns;
+  };
+  std::vector<RunImpulse> run_impulses;
+  static constexpr std::size_t kRunsReserved = 16;
 };
 
 }  // namespace detail
