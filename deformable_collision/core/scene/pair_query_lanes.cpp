@@ -49,6 +49,7 @@ void PairQueryLanes::startLanes(std::size_t threads) {
     lane.contacts.clear();
     lane.contacts.reserve(most_contacts_);
     lane.first_open = 0;
+    lane.next = 0;
   }
   if (pairs_.size() > pairs_capacity_) {
     pair_taken_ = std::make_unique<std::atomic<bool>[]>(pairs_.size());
@@ -59,31 +60,48 @@ void PairQueryLanes::startLanes(std::size_t threads) {
 }
 
 std::optional<std::size_t> PairQueryLanes::take(Lane& lane) {
-  while (pairs_taken_.load(std::memory_order_acquire) < pairs_.size()) {
-    for (std::size_t i = lane.first_open; i < pairs_.size(); ++i) {
-      if (pair_taken_[i].load(std::memory_order_relaxed)) {
-        if (i == lane.first_open) ++lane.first_open;
-        continue;
-      }
-      const Pair& p = pairs_[i];
-      if (!hold(p.object_a)) continue;
-      if (!hold(p.object_b)) {
-        release(p.object_a);
-        continue;
-      }
-      // Another lane may have taken and finished the pair between the test above and now.
-      if (pair_taken_[i].exchange(true, std::memory_order_acq_rel)) {
-        release(p.object_a);
-        release(p.object_b);
-        continue;
-      }
-      pairs_taken_.fetch_add(1, std::memory_order_acq_rel);
-      return i;
+  const std::size_t count = pairs_.size();
+  while (pairs_taken_.load(std::memory_order_acquire) < count) {
+    // On from the lane's last pair, then the ones before it: a lane kept off the pairs of a
+    // busy object (a pile's floor, whose pairs come first) does not scan them every time.
+    if (const auto taken = takeAmong(lane, lane.next, count)) return taken;
+    while (lane.first_open < lane.next &&
+           pair_taken_[lane.first_open].load(std::memory_order_relaxed)) {
+      ++lane.first_open;
     }
-    // The pairs left share an object with a query in progress: a pile's floor, say.
+    if (const auto taken = takeAmong(lane, lane.first_open, lane.next)) return taken;
+    // The pairs left share an object with a query in progress.
     std::this_thread::yield();
   }
   return std::nullopt;
+}
+
+std::optional<std::size_t> PairQueryLanes::takeAmong(Lane& lane, std::size_t begin,
+                                                     std::size_t end) {
+  for (std::size_t i = begin; i < end; ++i) {
+    if (!tryTake(i)) continue;
+    lane.next = i + 1;
+    return i;
+  }
+  return std::nullopt;
+}
+
+bool PairQueryLanes::tryTake(std::size_t index) {
+  if (pair_taken_[index].load(std::memory_order_relaxed)) return false;
+  const Pair& p = pairs_[index];
+  if (!hold(p.object_a)) return false;
+  if (!hold(p.object_b)) {
+    release(p.object_a);
+    return false;
+  }
+  // Another lane may have taken and finished the pair between the test above and now.
+  if (pair_taken_[index].exchange(true, std::memory_order_acq_rel)) {
+    release(p.object_a);
+    release(p.object_b);
+    return false;
+  }
+  pairs_taken_.fetch_add(1, std::memory_order_acq_rel);
+  return true;
 }
 
 bool PairQueryLanes::hold(std::uint32_t object) {

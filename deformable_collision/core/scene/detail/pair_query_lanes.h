@@ -74,6 +74,7 @@ class PairQueryLanes {
     QueryCounters counters;
     std::vector<SceneContact> contacts;
     std::size_t first_open = 0;  ///< Every pair before it is taken.
+    std::size_t next = 0;        ///< After the lane's last pair.
   };
 
   /// Releases a taken pair's two objects when its query returns or throws.
@@ -93,6 +94,10 @@ class PairQueryLanes {
   /// A pair not yet taken whose two objects this lane now holds; std::nullopt once every pair
   /// is taken. Waits while the pairs left share an object with a query in progress.
   std::optional<std::size_t> take(Lane& lane);
+  /// The first pair in [begin, end) that tryTake() takes, for `lane`.
+  std::optional<std::size_t> takeAmong(Lane& lane, std::size_t begin, std::size_t end);
+  /// Takes pair `index` if no lane took it and both its objects are free.
+  bool tryTake(std::size_t index);
   bool hold(std::uint32_t object);
   void release(std::uint32_t object);
 
