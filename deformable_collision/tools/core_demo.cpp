@@ -2,6 +2,7 @@
 // contacts, over a fixed simulated time, and a hash of the trajectory.
 // Usage: core_demo [scene=three_objects] [cycles=300] [level=-1 (finest)] [points=0 (the
 //        scene's default)] [contact_distance_m=0 (the scene's default, the least allowed)]
+//        [threads=1 (SceneConfig::threads: the hashes are the same on any count)]
 #include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
@@ -109,6 +110,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (argc > 5) config.contact_distance_m = std::atof(argv[5]);
+  if (argc > 6) config.threads = std::atoi(argv[6]);
   std::unique_ptr<dc::Scene> scene;
   try {
     scene = dc::makeDemoScene(*kind, std::size_t(points), config);
