@@ -24,26 +24,17 @@ namespace detail {
 /// Nothing is allocated once the lists have grown to a scene's needs.
 class PairQueryLanes {
  public:
-  /// A pair to query, and once run() returned, where its contacts are.
-  struct Pair {
-    std::uint32_t object_a = 0;
-    std::uint32_t object_b = 0;
-    std::size_t lane = 0;
-    std::size_t begin = 0;
-    std::size_t end = 0;
-  };
-
   /// Forgets the pairs of the last run; the objects' indices are below `objects`.
   void clear(std::size_t objects);
   /// One more pair to query; a and b differ.
   void add(std::uint32_t object_a, std::uint32_t object_b) {
     pairs_.push_back(Pair{object_a, object_b});
   }
-  std::size_t size() const { return pairs_.size(); }
 
   /// Calls query(object_a, object_b, hierarchy_query, counters, contacts) for every pair
   /// added since clear(), on the pool's threads, each thread with its own query, counters and
-  /// contact list. The first exception a query throws is thrown once all pairs were taken.
+  /// contact list. A query that throws releases its objects and ends its thread's part;
+  /// the first such exception is thrown once every thread has stopped.
   template <typename Query>
   void run(WorkerPool& pool, const Query& query) {
     startLanes(static_cast<std::size_t>(pool.threads()));
@@ -60,15 +51,23 @@ class PairQueryLanes {
     });
   }
 
-  /// Pair `index` in the order add() was called, with where its contacts are.
-  const Pair& pair(std::size_t index) const { return pairs_[index]; }
-  /// The contacts of pair `index`, in the order its query appended them.
+  /// The contacts of pair `index` (in the order add() was called), in the order its query
+  /// appended them.
   const SceneContact* contactsBegin(std::size_t index) const;
   const SceneContact* contactsEnd(std::size_t index) const;
   /// The counters of the last run, over its threads.
   QueryCounters counters() const;
 
  private:
+  /// A pair to query, and once run() returned, where its contacts are.
+  struct Pair {
+    std::uint32_t object_a = 0;
+    std::uint32_t object_b = 0;
+    std::size_t lane = 0;
+    std::size_t begin = 0;
+    std::size_t end = 0;
+  };
+
   struct Lane {
     HierarchyQuery query;
     QueryCounters counters;
