@@ -688,7 +688,7 @@ def threads_report(results, rows):
              "settled 150 cycles, then the mean of 100 cycles per stage, in ms; of 3 runs, the one "
              "of the least whole cycle. Dynamic objects step on the pool once they hold 32k "
              "points, and object pairs are queried on it once a detection has 32 candidate "
-             "pairs, and the response moves and dents objects on it once they are 32 (S2; S1 "
+             "pairs, and the response moves and dents objects on it once 32 are dynamic (S2; S1 "
              "and S3 stay on one thread); it resolves pairs on the cycle's thread. The contacts and states are the same on every count "
              "(`test_scene_threads`).\n\n")
     text += table(["scene", "threads", "shape matching", "detection", "response", "whole cycle"],

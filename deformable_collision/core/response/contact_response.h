@@ -127,7 +127,7 @@ class ContactResponse {
   /// applyObjectResponse() for every dynamic object, then the dents' momentum into the runs
   /// in the objects' order.
   void applyObjectResponses(WorkerPool& pool);
-  /// Below this many objects the response stays on the calling thread.
+  /// Below this many dynamic objects the response stays on the calling thread.
   static constexpr std::size_t kObjectsWorthSharing = 32;
   /// Dents the pending nodes by what their contacts need beyond the object's move, once
   /// every pair has added to that move.
