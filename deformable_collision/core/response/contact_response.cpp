@@ -1,7 +1,6 @@
 // The contact response: each pair of touching objects is pushed apart along one normal and
 // stops approaching, objects nearer to a fixed support acting as fixed (shock propagation).
 #include <algorithm>
-#include <atomic>
 #include <limits>
 
 #include "deformable_collision/core/response/detail/resolving_pair.h"
@@ -101,31 +100,6 @@ std::size_t ContactResponse::respond(WorkerPool& pool) {
   }
   applyObjectResponses(pool);
   return points_displaced_;
-}
-
-void ContactResponse::applyObjectResponses(WorkerPool& pool) {
-  std::atomic<std::size_t> displaced{0};
-  const auto apply = [&](std::size_t i) {
-    Object& object = *objects_[i];
-    if (object.dynamic())
-      displaced.fetch_add(applyObjectResponse(object), std::memory_order_relaxed);
-  };
-  // A few dynamic objects stay on this thread: waking the workers would cost more than they
-  // share, and a scene of tracked objects has nothing to dent at all.
-  const auto dynamic_objects = std::count_if(objects_.begin(), objects_.end(),
-                                             [](const auto& object) { return object->dynamic(); });
-  if (pool.threads() > 1 && static_cast<std::size_t>(dynamic_objects) >= kObjectsWorthSharing) {
-    pool.forEach(objects_.size(), apply);
-  } else {
-    for (std::size_t i = 0; i < objects_.size(); ++i) apply(i);
-  }
-  points_displaced_ += displaced.load();
-  if (!config_.contact_forces) return;
-  // In the objects' order, as one thread would add them: the runs' sums are the same bits.
-  for (auto& object : objects_) {
-    for (const auto& e : object->dents.run_impulses) addImpulse(e.run, *object, e.impulse_ns);
-    object->dents.run_impulses.clear();
-  }
 }
 
 void ContactResponse::readMeanVelocities() {
@@ -330,45 +304,6 @@ void ContactResponse::stopApproachToFixedPartners() {
       addImpulse(r, moving, -approach * moving.body.config().mass_kg * side->normal);
     }
   }
-}
-
-std::size_t ContactResponse::applyObjectResponse(Object& object) const {
-  applyPendingDents(object);
-  const bool moved = object.translation.squaredNorm() > 0.0 ||
-                     object.velocity_change.squaredNorm() > 0.0 ||
-                     !object.dents.displaced_points.empty();
-  if (!moved) return 0;
-  // An object moves at most the contact distance per response beyond what this cycle's
-  // step moved it, so it cannot jump past a layer thinner than that before the layer's
-  // contacts are seen; deeper overlaps take a few cycles. The step's own motion can always
-  // be undone: with a long step, gravity alone takes a resting object deeper than the
-  // contact distance (g h^2 = 2.5 cm at h = 0.05 s), and a smaller cap sinks it.
-  const double allowed =
-      config_.contact_distance_m + config_.dt_s * object.body.meanVelocity().norm();
-  const double reach = object.translation.norm();
-  if (reach > allowed) object.translation *= allowed / reach;
-  object.dents.averageDisplacements();
-  std::size_t displaced = 0;
-  if (object.dents.displacements.empty()) {
-    // The points make the move in the next step's pass over them.
-    object.body.deferRigidMove(object.translation, object.velocity_change);
-  } else {
-    if (config_.contact_forces) sumDentImpulses(object);
-    const RigidMotion motion = object.body.rigidMotion();
-    const Sphere& bound = object.tree.sphere(0);
-    const detail::RigidVelocityChange balance = object.dents.balanceVelocityChanges(
-        object.body.positions(), motion, object.body.pointMassKg(),
-        (bound.center - motion.center).norm() + bound.radius);
-    if (config_.contact_forces) payDentImpulses(object, balance.paid);
-    object.body.moveRigidly(object.translation, object.velocity_change - balance.velocity,
-                            -balance.spin, balance.center + object.translation);
-    displaced = object.dents.displacements.size();
-    object.body.displacePoints(object.dents.displacements);
-  }
-  object.translation.setZero();
-  object.velocity_change.setZero();
-  object.stale = true;
-  return displaced;
 }
 
 void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {

@@ -1,5 +1,7 @@
-// The dents of a dynamic object: queued per pair, applied once every pair has moved it.
+// The moves and dents of a dynamic object: dents queued per pair, applied once every pair
+// has moved it, object by object on the pool's threads.
 #include <algorithm>
+#include <atomic>
 #include <optional>
 
 #include "deformable_collision/core/response/detail/resolving_pair.h"
@@ -106,6 +108,70 @@ void ContactResponse::queueDents(const ResolvingPair& pair) {
 // after this response's whole-object changes (velocity_after): a point measured before its
 // object's own change would be stopped twice, and a resting object would leave each cycle
 // moving up.
+void ContactResponse::applyObjectResponses(WorkerPool& pool) {
+  std::atomic<std::size_t> displaced{0};
+  const auto apply = [&](std::size_t i) {
+    Object& object = *objects_[i];
+    if (object.dynamic())
+      displaced.fetch_add(applyObjectResponse(object), std::memory_order_relaxed);
+  };
+  // A few dynamic objects stay on this thread: waking the workers would cost more than they
+  // share, and a scene of tracked objects has nothing to dent at all.
+  const auto dynamic_objects = std::count_if(objects_.begin(), objects_.end(),
+                                             [](const auto& object) { return object->dynamic(); });
+  if (pool.threads() > 1 && static_cast<std::size_t>(dynamic_objects) >= kObjectsWorthSharing) {
+    pool.forEach(objects_.size(), apply);
+  } else {
+    for (std::size_t i = 0; i < objects_.size(); ++i) apply(i);
+  }
+  points_displaced_ += displaced.load();
+  if (!config_.contact_forces) return;
+  // In the objects' order, as one thread would add them: the runs' sums are the same bits.
+  for (auto& object : objects_) {
+    for (const auto& e : object->dents.run_impulses) addImpulse(e.run, *object, e.impulse_ns);
+    object->dents.run_impulses.clear();
+  }
+}
+
+std::size_t ContactResponse::applyObjectResponse(Object& object) const {
+  applyPendingDents(object);
+  const bool moved = object.translation.squaredNorm() > 0.0 ||
+                     object.velocity_change.squaredNorm() > 0.0 ||
+                     !object.dents.displaced_points.empty();
+  if (!moved) return 0;
+  // An object moves at most the contact distance per response beyond what this cycle's
+  // step moved it, so it cannot jump past a layer thinner than that before the layer's
+  // contacts are seen; deeper overlaps take a few cycles. The step's own motion can always
+  // be undone: with a long step, gravity alone takes a resting object deeper than the
+  // contact distance (g h^2 = 2.5 cm at h = 0.05 s), and a smaller cap sinks it.
+  const double allowed =
+      config_.contact_distance_m + config_.dt_s * object.body.meanVelocity().norm();
+  const double reach = object.translation.norm();
+  if (reach > allowed) object.translation *= allowed / reach;
+  object.dents.averageDisplacements();
+  std::size_t displaced = 0;
+  if (object.dents.displacements.empty()) {
+    // The points make the move in the next step's pass over them.
+    object.body.deferRigidMove(object.translation, object.velocity_change);
+  } else {
+    if (config_.contact_forces) sumDentImpulses(object);
+    const RigidMotion motion = object.body.rigidMotion();
+    const Sphere& bound = object.tree.sphere(0);
+    const detail::RigidVelocityChange balance = object.dents.balanceVelocityChanges(
+        object.body.positions(), motion, object.body.pointMassKg(),
+        (bound.center - motion.center).norm() + bound.radius);
+    if (config_.contact_forces) payDentImpulses(object, balance.paid);
+    object.body.moveRigidly(object.translation, object.velocity_change - balance.velocity,
+                            -balance.spin, balance.center + object.translation);
+    displaced = object.dents.displacements.size();
+    object.body.displacePoints(object.dents.displacements);
+  }
+  object.translation.setZero();
+  object.velocity_change.setZero();
+  object.stale = true;
+  return displaced;
+}
+
 void ContactResponse::applyPendingDents(Object& object) const {
   for (const DentScratch::PendingDent& pending : object.dents.pending) {
     // The partner's velocity after the response, less this object's own change: what a
