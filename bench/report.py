@@ -1027,8 +1027,8 @@ def headline_table(sizes, ms, methods, s2_rows, s3, registration, add_object):
     ours = registration_defaults(registration)
     rest = next((r for r in registration if r["kind"] == "rest"), None)
     if ours:
-        rows.append((f"Registration of the squeezed sponge, {ours['iterations']} rounds x "
-                     f"{ours['cloud_points']} cloud points: mean error seen / hidden side",
+        rows.append((f"Sponge registration ({ours['iterations']} x {ours['cloud_points']} "
+                     "points): mean error seen / hidden",
                      f"{ours['seen']} / {ours['hidden']} mm at {ours['ms']} ms per cloud" +
                      (f" (rest model left in place: {rest['seen']} / {rest['hidden']} mm)" if rest else "")))
     if add_object:
