@@ -179,10 +179,7 @@ void Scene::queryPairsOnPool(int level, const std::vector<BroadPhase::Pair>& can
                               QueryCounters& counters, std::vector<SceneContact>& contacts) {
     queryPair(level, a, b, query, counters, contacts);
   });
-  const QueryCounters pooled = pair_lanes_->counters();
-  query_counters_.node_pairs_tested += pooled.node_pairs_tested;
-  query_counters_.leaf_pairs_tested += pooled.leaf_pairs_tested;
-  query_counters_.point_tests += pooled.point_tests;
+  pair_lanes_->addCounters(query_counters_);
 }
 
 void Scene::reusePreviousContacts(std::uint32_t first, std::uint32_t second, std::size_t& cursor) {

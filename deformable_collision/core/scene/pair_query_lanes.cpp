@@ -24,14 +24,12 @@ const SceneContact* PairQueryLanes::contactsEnd(std::size_t index) const {
   return lanes_[p.lane].contacts.data() + p.end;
 }
 
-QueryCounters PairQueryLanes::counters() const {
-  QueryCounters sum;
+void PairQueryLanes::addCounters(QueryCounters& counters) const {
   for (const Lane& lane : lanes_) {
-    sum.node_pairs_tested += lane.counters.node_pairs_tested;
-    sum.leaf_pairs_tested += lane.counters.leaf_pairs_tested;
-    sum.point_tests += lane.counters.point_tests;
+    counters.node_pairs_tested += lane.counters.node_pairs_tested;
+    counters.leaf_pairs_tested += lane.counters.leaf_pairs_tested;
+    counters.point_tests += lane.counters.point_tests;
   }
-  return sum;
 }
 
 PairQueryLanes::Held::~Held() {

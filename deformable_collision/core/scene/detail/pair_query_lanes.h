@@ -55,8 +55,8 @@ class PairQueryLanes {
   /// appended them.
   const SceneContact* contactsBegin(std::size_t index) const;
   const SceneContact* contactsEnd(std::size_t index) const;
-  /// The counters of the last run, over its threads.
-  QueryCounters counters() const;
+  /// Adds the counters of the last run, over its threads, to `counters`.
+  void addCounters(QueryCounters& counters) const;
 
  private:
   /// A pair to query, and once run() returned, where its contacts are.
