@@ -684,13 +684,15 @@ def read_threads(results):
 
 def threads_report(results, rows):
     text = "# The cycle on several threads\n\n"
-    text += ("`bench/bench_threads.cpp`: each scene made with `SceneConfig::threads` 1, 2 and 4, "
-             "settled 150 cycles, then the mean of 100 cycles per stage, in ms; of 3 runs, the one "
-             "of the least whole cycle. Dynamic objects step on the pool once they hold 32k "
-             "points, and object pairs are queried on it once a detection has 32 candidate "
-             "pairs, and the response moves and dents objects on it once 32 are dynamic (S2; S1 "
-             "and S3 stay on one thread); it resolves pairs on the cycle's thread. The contacts and states are the same on every count "
-             "(`test_scene_threads`).\n\n")
+    text += ("`bench/bench_threads.cpp`: each scene made with `SceneConfig::threads` 1, 2 and 4 "
+             "and settled 150 cycles; then 30 blocks of 10 cycles, timed in turn on each count "
+             "(the host's speed drifts over a run), and per stage the median of the blocks' "
+             "means, in ms. Dynamic objects step on the pool once they hold 32k points; object "
+             "pairs are queried on it once a detection has 32 candidate pairs; the response "
+             "measures the normals between dynamic objects on it once there are 32 such pairs, "
+             "and moves and dents objects on it once 32 are dynamic (S2; S1 and S3 stay on one "
+             "thread); it resolves pairs on the cycle's thread. The contacts and states are the "
+             "same on every count (`test_scene_threads`).\n\n")
     text += table(["scene", "threads", "shape matching", "detection", "response", "whole cycle"],
                   [(THREADS_SCENES.get(scene, scene), threads,
                     f"{float(r['shape_matching_ms']):.3f}", f"{float(r['detection_ms']):.3f}",
