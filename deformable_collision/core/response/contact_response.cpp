@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "deformable_collision/core/response/detail/pair_normals.h"
 #include "deformable_collision/core/response/detail/resolving_pair.h"
 
 namespace deformable_collision {
@@ -71,6 +72,16 @@ void ContactResponse::rankSupport() {
   }
 }
 
+ContactResponse::ContactResponse(Objects& objects, const std::vector<SceneContact>& contacts,
+                                 std::vector<ContactRun>& runs, const SceneConfig& config)
+    : objects_(objects),
+      contacts_(contacts),
+      contact_runs_(runs),
+      config_(config),
+      pair_normals_(std::make_unique<detail::PairNormals>()) {}
+
+ContactResponse::~ContactResponse() = default;
+
 std::size_t ContactResponse::respond(WorkerPool& pool) {
   // Objects are separated to half the contact distance: resting objects stay in contact
   // (closer than the contact distance) and are still held apart.
@@ -88,6 +99,7 @@ std::size_t ContactResponse::respond(WorkerPool& pool) {
   readMeanVelocities();
   rankSupport();
   for (auto& object : objects_) object->contact_memory.forgetBefore(cycle_count_);
+  measureDynamicNormals(pool);
   resolvePairs();
   repeatVelocityExchanges();
   stopApproachToFixedPartners();
@@ -112,6 +124,23 @@ void ContactResponse::readMeanVelocities() {
           object.dynamic() ? object.body.meanVelocity() : Eigen::Vector3d::Zero();
     }
   }
+}
+
+// A pair's normal between dynamic objects depends on its contacts, the spheres and leaf
+// columns the query left and the side it remembers, none of which resolving other pairs
+// changes.
+void ContactResponse::measureDynamicNormals(WorkerPool& pool) {
+  pair_normals_->clear(contact_runs_.size(), contacts_.size());
+  for (std::uint32_t r = 0; r < contact_runs_.size(); ++r) {
+    const ContactRun& run = contact_runs_[r];
+    Object& a = *objects_[run.object_a];
+    Object& b = *objects_[run.object_b];
+    if (!a.dynamic() || !b.dynamic()) continue;
+    ResolvingPair pair{a,       b,     run.object_a, run.object_b,  run.begin,
+                       run.end, false, false,        a.translation, b.translation};
+    pair_normals_->add(r, sideOfA(pair));
+  }
+  pair_normals_->measure(pool, objects_, contacts_, contact_runs_, config_.contact_distance_m);
 }
 
 void ContactResponse::resolvePairs() {
@@ -328,9 +357,11 @@ void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {
                      b.translation};
   pair.run = run;
   pair.held = heldContact(pair);
-  pair.side_of_a = sideOfA(pair);
-  if (!pair.one_side_fixed) {
-    pair.dynamic_normal = separatingNormal(pair);
+  if (pair.one_side_fixed) {
+    pair.side_of_a = sideOfA(pair);
+  } else {
+    pair.side_of_a = pair_normals_->sideOfA(run);
+    pair.dynamic_normal = pair_normals_->normal(run);
     pair.a_against_fixed = againstFixedPartner(a, pair.dynamic_normal);
     pair.b_against_fixed = againstFixedPartner(b, -pair.dynamic_normal);
   }

@@ -15,7 +15,8 @@ struct SceneContact;
 struct SphereContact;
 namespace detail {
 struct SceneObject;
-}
+class PairNormals;
+}  // namespace detail
 
 /// The contacts of one object pair: contacts[begin, end).
 struct ContactRun {
@@ -43,15 +44,15 @@ class ContactResponse {
   /// Reads the scene's objects, contacts, runs and configuration through these references,
   /// which must outlive it.
   ContactResponse(Objects& objects, const std::vector<SceneContact>& contacts,
-                  std::vector<ContactRun>& runs, const SceneConfig& config)
-      : objects_(objects), contacts_(contacts), contact_runs_(runs), config_(config) {}
+                  std::vector<ContactRun>& runs, const SceneConfig& config);
+  ~ContactResponse();
   ContactResponse(const ContactResponse&) = delete;
   ContactResponse& operator=(const ContactResponse&) = delete;
 
   /// Moves and dents the dynamic objects of the runs' pairs and changes their velocities;
-  /// marks what it moved stale. The pairs are resolved on this thread; the objects, each
-  /// touching only its own body, are then moved and dented on `pool`'s threads when they are
-  /// many: the same bits on any count.
+  /// marks what it moved stale. The pairs are resolved on this thread, their normals measured
+  /// before on `pool`'s threads; the objects, each touching only its own body, are then moved
+  /// and dented on them, when there are many: the same bits on any count.
   /// @return the number of points displaced by dents.
   std::size_t respond(WorkerPool& pool);
 
@@ -61,19 +62,6 @@ class ContactResponse {
   struct ResolvingPair;
   struct FixedSurface;
   struct TouchedSurface;
-  /// Scratch of one side of the dynamic pair being resolved: its contact nodes, and per node
-  /// its number of the pair's contacts (0 outside them) and how far its points reach along
-  /// the pair's normal, towards the partner. One per side for the whole scene, sized to the
-  /// largest tree met: an object's own would be cold in memory each time it is resolved.
-  struct PairContactNodes {
-    /// Makes room for a tree of `node_count` nodes; allocates only for a larger one than
-    /// before.
-    void fit(std::size_t node_count);
-
-    std::vector<std::uint32_t> nodes;
-    std::vector<std::uint32_t> contacts_of_node;
-    std::vector<double> reach_of_node;
-  };
   /// A pair's velocity exchange as its resolution decided it.
   struct VelocityExchange {
     std::uint32_t object_a;
@@ -104,6 +92,8 @@ class ContactResponse {
   /// Between a fixed and a dynamic object: whether the dynamic one lay on the touched
   /// surface before this cycle's step. Between dynamic objects: true.
   bool isSupportLink(const ContactRun& run);
+  /// The normal of every pair between dynamic objects, before any is resolved.
+  void measureDynamicNormals(WorkerPool& pool);
   /// Resolves the pairs from the supports up.
   void resolvePairs();
   /// Moves each dynamic object by its pairs with fixed objects taken together.
@@ -149,7 +139,6 @@ class ContactResponse {
   void undoStepApproach(const ResolvingPair& pair, const Eigen::Vector3d& normal,
                         Eigen::Vector3d& move_a, Eigen::Vector3d& move_b) const;
   Eigen::Vector3d sideOfA(const ResolvingPair& pair);
-  Eigen::Vector3d separatingNormal(const ResolvingPair& pair);
   /// Whether moving `object` along the unit `direction` drives it into a fixed object that
   /// pushed it off in this response (within 45 degrees of straight into it).
   bool againstFixedPartner(const Object& object, const Eigen::Vector3d& direction) const;
@@ -164,8 +153,8 @@ class ContactResponse {
   /// The least `touched.away` component of the object's points in line with the touched
   /// nodes (infinity if none).
   double lowestInLine(Object& moving, const TouchedSurface& touched);
-  bool pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& contact,
-                          ContactPush& push) const;
+  /// The push of contact `contact`, of a pair between dynamic objects.
+  bool pushBetweenDynamic(const ResolvingPair& pair, std::size_t contact, ContactPush& push) const;
   void moveByMeanPush(ResolvingPair& pair);
   void queueDents(const ResolvingPair& pair);
   void rememberSide(const ResolvingPair& pair, const Eigen::Vector3d& normal);
@@ -193,8 +182,7 @@ class ContactResponse {
   const SceneConfig& config_;
 
   std::vector<ContactPush> pushes_;
-  PairContactNodes pair_nodes_a_;
-  PairContactNodes pair_nodes_b_;
+  std::unique_ptr<detail::PairNormals> pair_normals_;
   std::vector<std::uint32_t> support_queue_;
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   /// The velocity exchanges of this response's pairs, in their order, for the later passes.

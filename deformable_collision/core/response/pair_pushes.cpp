@@ -4,6 +4,7 @@
 #include <limits>
 #include <optional>
 
+#include "deformable_collision/core/response/detail/pair_normals.h"
 #include "deformable_collision/core/response/detail/resolving_pair.h"
 
 namespace deformable_collision {
@@ -17,7 +18,7 @@ void ContactResponse::collectPushes(const ResolvingPair& pair) {
     push.points_a = pair.a.tree.node(c.node_a).point_count;
     push.points_b = pair.b.tree.node(c.node_b).point_count;
     const bool pushed =
-        pair.one_side_fixed ? pushFromFixedPlane(pair, c, push) : pushBetweenDynamic(pair, c, push);
+        pair.one_side_fixed ? pushFromFixedPlane(pair, c, push) : pushBetweenDynamic(pair, k, push);
     if (pushed) pushes_.push_back(push);
   }
 }
@@ -184,15 +185,16 @@ double ContactResponse::lowestInLine(Object& moving, const TouchedSurface& touch
 // pair's distance says nothing of how deep two clouds have passed into each other (it stays
 // below the point spacing however deep), and piles would sink into themselves. Above the
 // leaves, spheres stand for their points (the query's depth).
-bool ContactResponse::pushBetweenDynamic(const ResolvingPair& pair, const SphereContact& c,
+bool ContactResponse::pushBetweenDynamic(const ResolvingPair& pair, std::size_t contact,
                                          ContactPush& push) const {
+  const SphereContact& c = contacts_[contact].contact;
   const Object& a = pair.a;
   const Object& b = pair.b;
   push.normal = pair.dynamic_normal;
-  const double overlap = pair.leaves ? pair_nodes_b_.reach_of_node[c.node_b] +
-                                           pair_nodes_a_.reach_of_node[c.node_a] +
-                                           config_.contact_distance_m
-                                     : c.depth_m;
+  const double overlap = pair.leaves
+                             ? pair_normals_->reachOfB(contact) + pair_normals_->reachOfA(contact) +
+                                   config_.contact_distance_m
+                             : c.depth_m;
   const double depth =
       overlap - 0.5 * config_.contact_distance_m - (a.translation - b.translation).dot(push.normal);
   if (depth <= 0.0) return false;

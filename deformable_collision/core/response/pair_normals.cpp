@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <limits>
 
-#include "deformable_collision/core/response/detail/resolving_pair.h"
+#include "deformable_collision/core/response/detail/pair_normals.h"
+#include "deformable_collision/core/scene/detail/scene_object.h"
 
 namespace deformable_collision {
+namespace detail {
 namespace {
 
 /// Mean and scatter of points, taken about an origin near them (coordinates may be 1e5 m).
@@ -119,60 +121,96 @@ double reachAlong(const SphereTree& tree, std::uint32_t leaf, const Eigen::Vecto
 
 }  // namespace
 
+void PairNormals::clear(std::size_t runs, std::size_t contacts) {
+  added_.clear();
+  measured_.resize(runs);
+  reach_a_.resize(contacts);
+  reach_b_.resize(contacts);
+}
+
+void PairNormals::add(std::uint32_t run, const Eigen::Vector3d& side_of_a) {
+  added_.push_back(run);
+  measured_[run].side_of_a = side_of_a;
+}
+
+void PairNormals::measure(WorkerPool& pool, Objects& objects,
+                          const std::vector<SceneContact>& contacts,
+                          const std::vector<ContactRun>& runs, double contact_distance_m) {
+  const bool shared = pool.threads() > 1 && added_.size() >= kRunsWorthSharing;
+  const std::size_t lanes = shared ? static_cast<std::size_t>(pool.threads()) : 1;
+  if (lanes_.size() < lanes) lanes_.resize(lanes);
+  next_.store(0, std::memory_order_relaxed);
+  // Each lane takes the next run left: runs differ much in contacts.
+  pool.forEach(lanes, [&](std::size_t lane) {
+    for (std::size_t i = next_.fetch_add(1, std::memory_order_relaxed); i < added_.size();
+         i = next_.fetch_add(1, std::memory_order_relaxed)) {
+      measureRun(i, lanes_[lane], objects, contacts, runs, contact_distance_m);
+    }
+  });
+}
+
 // Between two dynamic objects every push goes along one normal: the direction that
 // separates a's contact nodes from b's, turned to agree with the side a lies on. Nearest
 // point pairs of two clouds point every which way, and more so once the clouds have passed
-// into each other; the two sides of the contact do not. Also measures how far each contact
-// node reaches along it, towards the other object.
-Eigen::Vector3d ContactResponse::separatingNormal(const ResolvingPair& pair) {
-  SphereTree& tree_a = pair.a.tree;
-  SphereTree& tree_b = pair.b.tree;
-  PairContactNodes& nodes_a = pair_nodes_a_;
-  PairContactNodes& nodes_b = pair_nodes_b_;
-  nodes_a.fit(tree_a.nodeCount());
-  nodes_b.fit(tree_b.nodeCount());
-  for (std::size_t k = pair.run_begin; k < pair.run_end; ++k) {
-    const SphereContact& c = contacts_[k].contact;
+// into each other; the two sides of the contact do not.
+void PairNormals::measureRun(std::size_t index, Lane& lane, Objects& objects,
+                             const std::vector<SceneContact>& contacts,
+                             const std::vector<ContactRun>& runs, double contact_distance_m) {
+  const ContactRun& run = runs[added_[index]];
+  Measured& measured = measured_[added_[index]];
+  SphereTree& tree_a = objects[run.object_a]->tree;
+  SphereTree& tree_b = objects[run.object_b]->tree;
+  lane.a.fit(tree_a.nodeCount());
+  lane.b.fit(tree_b.nodeCount());
+  for (std::size_t k = run.begin; k < run.end; ++k) {
+    const SphereContact& c = contacts[k].contact;
     // Where a node's points lie is read below, from node records the query did not touch:
     // asked for now, their cache misses overlap instead of coming one node at a time.
-    if (nodes_a.contacts_of_node[c.node_a]++ == 0) {
-      nodes_a.nodes.push_back(c.node_a);
+    if (lane.a.contacts_of_node[c.node_a]++ == 0) {
+      lane.a.nodes.push_back(c.node_a);
       __builtin_prefetch(&tree_a.node(c.node_a).first_point);
     }
-    if (nodes_b.contacts_of_node[c.node_b]++ == 0) {
-      nodes_b.nodes.push_back(c.node_b);
+    if (lane.b.contacts_of_node[c.node_b]++ == 0) {
+      lane.b.nodes.push_back(c.node_b);
       __builtin_prefetch(&tree_b.node(c.node_b).first_point);
     }
   }
-  const double spread = 0.1 * config_.contact_distance_m;
-  const Eigen::Vector3d across = separatingDirection(
-      {tree_a, nodes_a.nodes, nodes_a.contacts_of_node},
-      {tree_b, nodes_b.nodes, nodes_b.contacts_of_node}, pair.leaves, spread * spread);
-  Eigen::Vector3d normal = pair.side_of_a;
+  const bool leaves = contacts[run.begin].contact.point_a != SphereContact::kNoPoint;
+  const double spread = 0.1 * contact_distance_m;
+  const Eigen::Vector3d across =
+      separatingDirection({tree_a, lane.a.nodes, lane.a.contacts_of_node},
+                          {tree_b, lane.b.nodes, lane.b.contacts_of_node}, leaves, spread * spread);
+  Eigen::Vector3d normal = measured.side_of_a;
   if (across.squaredNorm() > 0.0) {
-    normal = across.dot(pair.side_of_a) < 0.0 ? Eigen::Vector3d(-across) : across;
+    normal = across.dot(measured.side_of_a) < 0.0 ? Eigen::Vector3d(-across) : across;
   }
   const double length = normal.norm();
-  normal = length > 0.0 ? Eigen::Vector3d(normal / length) : Eigen::Vector3d::UnitZ();
-  for (const std::uint32_t node : nodes_a.nodes) {
-    if (pair.leaves) nodes_a.reach_of_node[node] = reachAlong(tree_a, node, -normal);
-    nodes_a.contacts_of_node[node] = 0;
+  measured.normal = length > 0.0 ? Eigen::Vector3d(normal / length) : Eigen::Vector3d::UnitZ();
+  if (leaves) {
+    for (const std::uint32_t node : lane.a.nodes) {
+      lane.a.reach_of_node[node] = reachAlong(tree_a, node, -measured.normal);
+    }
+    for (const std::uint32_t node : lane.b.nodes) {
+      lane.b.reach_of_node[node] = reachAlong(tree_b, node, measured.normal);
+    }
+    for (std::size_t k = run.begin; k < run.end; ++k) {
+      reach_a_[k] = lane.a.reach_of_node[contacts[k].contact.node_a];
+      reach_b_[k] = lane.b.reach_of_node[contacts[k].contact.node_b];
+    }
   }
-  for (const std::uint32_t node : nodes_b.nodes) {
-    if (pair.leaves) nodes_b.reach_of_node[node] = reachAlong(tree_b, node, normal);
-    nodes_b.contacts_of_node[node] = 0;
-  }
-  nodes_a.nodes.clear();
-  nodes_b.nodes.clear();
-  return normal;
+  for (const std::uint32_t node : lane.a.nodes) lane.a.contacts_of_node[node] = 0;
+  for (const std::uint32_t node : lane.b.nodes) lane.b.contacts_of_node[node] = 0;
+  lane.a.nodes.clear();
+  lane.b.nodes.clear();
 }
 
-void ContactResponse::PairContactNodes::fit(std::size_t node_count) {
+void PairNormals::Side::fit(std::size_t node_count) {
   if (contacts_of_node.size() >= node_count) return;
-  // Outside a pair every count is 0; the new ones too.
+  // Outside a run every count is 0; the new ones too.
   contacts_of_node.resize(node_count, 0);
   reach_of_node.resize(node_count, 0.0);
   nodes.reserve(node_count);
 }
 
+}  // namespace detail
 }  // namespace deformable_collision
