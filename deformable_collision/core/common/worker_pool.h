@@ -1,6 +1,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -44,6 +45,8 @@ class WorkerPool {
 
  private:
   using Call = void (*)(const void* context, std::size_t index);
+  /// How long a caller done with its iterations spins for the workers before it sleeps.
+  static constexpr std::chrono::microseconds kFinishSpin{50};
 
   void run(std::size_t count, Call call, const void* context);
   /// Takes iterations until none is left.
@@ -60,7 +63,9 @@ class WorkerPool {
   std::size_t count_ = 0;
   std::atomic<std::size_t> next_{0};
   std::uint64_t generation_ = 0;
-  int busy_workers_ = 0;
+  /// Workers still in the loop in progress; written under mutex_, read by a caller that
+  /// spins for them.
+  std::atomic<int> busy_workers_{0};
   bool stopping_ = false;
   std::exception_ptr failure_;
 };

@@ -44,6 +44,16 @@ int queryLevel(int level, const SphereTree& a, ObjectKind kind_a, const SphereTr
 
 }  // namespace
 
+// Each root sphere is computed from its own object alone, and the same whichever thread
+// computes it.
+void Scene::computeRootsOnPool() {
+  if (pool_.threads() == 1 || objects_.size() < kRootsWorthSharing) return;
+  pool_.forEach(objects_.size(), [this](std::size_t index) {
+    Object& o = *objects_[index];
+    if (o.config.kind != ObjectKind::kStatic) o.tree.sphere(0);
+  });
+}
+
 const std::vector<BroadPhase::Pair>& Scene::sweepAndPrune() {
   const double margin = 0.5 * config_.contact_distance_m;
   return broad_phase_.sweep(objects_.size(), [&](std::uint32_t index) {
@@ -128,6 +138,7 @@ void Scene::detectCycleContacts(int level, bool ahead) {
   const bool reusable = previous_level_ == level;
   // Unset until this detection is complete: one that throws leaves nothing to reuse.
   previous_level_.reset();
+  computeRootsOnPool();
   const auto& candidate_pairs = sweepAndPrune();
   // A scene of a few pairs stays on this thread: handing them out costs more than it saves.
   const bool shared = pool_.threads() > 1 && candidate_pairs.size() >= kPairsWorthSharing;

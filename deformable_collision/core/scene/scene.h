@@ -384,6 +384,11 @@ class Scene {
                           std::vector<Eigen::Vector3d>& points_m);
 
   // The cycle's detection (detection.cpp).
+  /// Computes the root sphere of every object the sweep boxes by it, on the pool's threads
+  /// if the objects are many.
+  void computeRootsOnPool();
+  /// Below this many objects their root spheres are computed by the sweep itself.
+  static constexpr std::size_t kRootsWorthSharing = 32;
   /// The candidate object pairs of the objects' current boxes.
   const std::vector<BroadPhase::Pair>& sweepAndPrune();
   /// Appends the contacts at `level` and, if `runs` is given, each object pair's range of
