@@ -689,10 +689,11 @@ def threads_report(results, rows):
              "(the host's speed drifts over a run), and per stage the median of the blocks' "
              "means, in ms. Dynamic objects step on the pool once they hold 32k points; object "
              "pairs are queried on it once a detection has 32 candidate pairs; the response "
-             "measures the normals between dynamic objects on it once there are 32 such pairs, "
-             "and moves and dents objects on it once 32 are dynamic (S2; S1 and S3 stay on one "
-             "thread); it resolves pairs on the cycle's thread. The contacts and states are the "
-             "same on every count (`test_scene_threads`).\n\n")
+             "measures the normals between dynamic objects on it from 32 such pairs, resolves "
+             "the pairs with a fixed object on it, object by object, from 32 of them, and moves "
+             "and dents objects on it once 32 are dynamic (S2; S1 and S3 stay on one thread); it "
+             "resolves the pairs between dynamic objects on the cycle's thread. The contacts and "
+             "states are the same on every count (`test_scene_threads`).\n\n")
     text += table(["scene", "threads", "shape matching", "detection", "response", "whole cycle"],
                   [(THREADS_SCENES.get(scene, scene), threads,
                     f"{float(r['shape_matching_ms']):.3f}", f"{float(r['detection_ms']):.3f}",

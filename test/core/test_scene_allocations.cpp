@@ -181,7 +181,8 @@ TEST(Scene, SteadyStateCyclesOnTwoThreadsAllocateNothing) {
 }
 
 // Thirty-six soft boxes side by side on a floor, without gravity, on two threads: their pairs
-// are queried (Scene::kPairsWorthSharing) and the boxes dented (ContactResponse::
+// are queried (Scene::kPairsWorthSharing), their pairs with the floor resolved and those
+// between boxes given their normals (from 32 of each), and the boxes dented (ContactResponse::
 // kObjectsWorthSharing) on the pool, each thread with its own lists. Pushed half a contact
 // distance apart, the boxes rest, in contact: a steady state that any compiler reaches (a
 // pile still settling may grow a list at any cycle).

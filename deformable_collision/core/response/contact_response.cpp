@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "deformable_collision/core/response/detail/object_groups.h"
 #include "deformable_collision/core/response/detail/pair_normals.h"
 #include "deformable_collision/core/response/detail/resolving_pair.h"
 
@@ -78,7 +79,9 @@ ContactResponse::ContactResponse(Objects& objects, const std::vector<SceneContac
       contacts_(contacts),
       contact_runs_(runs),
       config_(config),
-      pair_normals_(std::make_unique<detail::PairNormals>()) {}
+      scratch_(1),
+      pair_normals_(std::make_unique<detail::PairNormals>()),
+      fixed_groups_(std::make_unique<detail::ObjectGroups>()) {}
 
 ContactResponse::~ContactResponse() = default;
 
@@ -100,7 +103,7 @@ std::size_t ContactResponse::respond(WorkerPool& pool) {
   rankSupport();
   for (auto& object : objects_) object->contact_memory.forgetBefore(cycle_count_);
   measureDynamicNormals(pool);
-  resolvePairs();
+  resolvePairs(pool);
   repeatVelocityExchanges();
   stopApproachToFixedPartners();
   if (config_.contact_forces) passCarriedImpulsesDown();
@@ -143,7 +146,7 @@ void ContactResponse::measureDynamicNormals(WorkerPool& pool) {
   pair_normals_->measure(pool, objects_, contacts_, contact_runs_, config_.contact_distance_m);
 }
 
-void ContactResponse::resolvePairs() {
+void ContactResponse::resolvePairs(WorkerPool& pool) {
   // Each pair of touching objects is resolved in two parts. The whole object moves by the
   // mean push of its contact nodes (weighted by their points) and stops approaching the
   // other along the pair's normal (perfectly inelastic between the centres of mass); only
@@ -168,66 +171,20 @@ void ContactResponse::resolvePairs() {
   });
   velocity_exchanges_.clear();
   fixed_pair_moves_.clear();
-  const auto resolve = [this](std::uint32_t r) {
-    const ContactRun& run = contact_runs_[r];
-    Object& a = *objects_[run.object_a];
-    Object& b = *objects_[run.object_b];
-    if (a.dynamic() || b.dynamic()) resolvePair(a, b, r);
-  };
   // The pairs with a fixed object come first (support depth 0); their moves are made
   // together before the pairs between dynamic objects are resolved.
   const auto dynamic_pairs =
       std::partition_point(resolve_order_.begin(), resolve_order_.end(),
                            [&](std::uint32_t r) { return nearer_support(contact_runs_[r]) == 0; });
-  std::for_each(resolve_order_.begin(), dynamic_pairs, resolve);
+  resolveFixedPairs(pool, static_cast<std::size_t>(dynamic_pairs - resolve_order_.begin()));
   moveByFixedPartners();
-  std::for_each(dynamic_pairs, resolve_order_.end(), resolve);
-}
-
-// An object between fixed ones, such as a fruit in a gripper's closed jaws, is pushed from
-// opposite sides. Resolved one after the other, the later pair took the object clear of its
-// own partner whatever the earlier one had moved it, and so deep into that one: the squeezed
-// fruit sat 2.5 cm towards the jaw resolved first, and at coarse levels swung by 3 to 4 cm.
-// So each of these pairs is resolved on the object as the dynamic pairs left it (none: they
-// come later), and their moves are combined here. Along the pairs' normals one after the
-// other, each adding only what the moves before left short of its own, as the pairs would,
-// once in each order and averaged: pushes from one side take the largest, from two sides
-// at right angles both, and opposed pushes meet halfway. Across the normals (what static
-// friction takes back) their mean.
-void ContactResponse::moveByFixedPartners() {
-  std::sort(fixed_pair_moves_.begin(), fixed_pair_moves_.end(),
-            [](const FixedPairMove& x, const FixedPairMove& y) {
-              return x.object != y.object ? x.object < y.object : x.serial < y.serial;
-            });
-  const auto add_shortfall = [](Eigen::Vector3d& along, const FixedPairMove& pair) {
-    const double short_of = (pair.move - along).dot(pair.normal);
-    if (short_of > 0.0) along += short_of * pair.normal;
-  };
-  for (auto begin = fixed_pair_moves_.begin(); begin != fixed_pair_moves_.end();) {
-    auto end = begin + 1;
-    while (end != fixed_pair_moves_.end() && end->object == begin->object) ++end;
-    Object& object = *objects_[begin->object];
-    if (end - begin == 1) {
-      object.translation += begin->move;
-      begin = end;
-      continue;
-    }
-    Eigen::Vector3d forward = Eigen::Vector3d::Zero();
-    Eigen::Vector3d backward = Eigen::Vector3d::Zero();
-    Eigen::Vector3d across = Eigen::Vector3d::Zero();
-    int across_count = 0;
-    for (auto pair = begin; pair != end; ++pair) {
-      add_shortfall(forward, *pair);
-      const Eigen::Vector3d tangential = pair->move - pair->move.dot(pair->normal) * pair->normal;
-      if (tangential.squaredNorm() == 0.0) continue;
-      across += tangential;
-      ++across_count;
-    }
-    for (auto pair = end; pair != begin;) add_shortfall(backward, *--pair);
-    object.translation += 0.5 * (forward + backward);
-    if (across_count > 0) object.translation += across / across_count;
-    begin = end;
-  }
+  std::for_each(dynamic_pairs, resolve_order_.end(), [this](std::uint32_t r) {
+    Object& a = *objects_[contact_runs_[r].object_a];
+    Object& b = *objects_[contact_runs_[r].object_b];
+    PairOutcome outcome;
+    resolvePair(a, b, r, scratch_.front(), ++pair_serial_, outcome);
+    keepOutcome(outcome);
+  });
 }
 
 // One pass over the pairs hands a push down to objects whose own supports it has already
@@ -335,7 +292,8 @@ void ContactResponse::stopApproachToFixedPartners() {
   }
 }
 
-void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {
+void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run, PairScratch& scratch,
+                                  std::uint64_t serial, PairOutcome& outcome) {
   const ContactRun& r = contact_runs_[run];
   const std::uint32_t index_a = r.object_a;
   const std::uint32_t index_b = r.object_b;
@@ -343,8 +301,7 @@ void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {
   const std::size_t run_end = r.end;
   // Pushes per contact, for a (along +normal) and b (along -normal): a node's depth along
   // a normal from b to a, shared by inverse mass between dynamic nodes.
-  pushes_.clear();
-  ++pair_serial_;
+  scratch.pushes.clear();
   ResolvingPair pair{a,
                      b,
                      index_a,
@@ -356,6 +313,9 @@ void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {
                      a.translation,
                      b.translation};
   pair.run = run;
+  pair.scratch = &scratch;
+  pair.serial = serial;
+  pair.outcome = &outcome;
   pair.held = heldContact(pair);
   if (pair.one_side_fixed) {
     pair.side_of_a = sideOfA(pair);
@@ -366,7 +326,7 @@ void ContactResponse::resolvePair(Object& a, Object& b, std::uint32_t run) {
     pair.b_against_fixed = againstFixedPartner(b, -pair.dynamic_normal);
   }
   collectPushes(pair);
-  if (pushes_.empty()) {
+  if (scratch.pushes.empty()) {
     holdClearContact(pair);
     return;
   }
@@ -466,14 +426,16 @@ void ContactResponse::exchangeVelocities(ResolvingPair& pair, const Eigen::Vecto
   // past the friction cone, a resting object kept sliding down it at a steady few cm/s while
   // its position stood still, and the objects it carried took that velocity on.
   const bool sticks = holdStaticFriction(pair, normal, share_a);
-  velocity_exchanges_.push_back({pair.index_a, pair.index_b, normal, share_a, sticks, pair.run});
-  exchangeVelocity(velocity_exchanges_.back());
+  PairOutcome& outcome = *pair.outcome;
+  outcome.exchanged = true;
+  outcome.exchange = {pair.index_a, pair.index_b, normal, share_a, sticks, pair.run};
+  exchangeVelocity(outcome.exchange);
   if (pair.one_side_fixed) {
     const bool a_moves = a.dynamic();
-    fixed_pair_moves_.push_back({a_moves ? pair.index_a : pair.index_b,
-                                 static_cast<std::uint32_t>(fixed_pair_moves_.size()),
-                                 a_moves ? normal : Eigen::Vector3d(-normal),
-                                 a_moves ? pair.move_a : pair.move_b});
+    outcome.fixed_move = true;
+    outcome.move = {a_moves ? pair.index_a : pair.index_b, 0,
+                    a_moves ? normal : Eigen::Vector3d(-normal),
+                    a_moves ? pair.move_a : pair.move_b};
     return;
   }
   if (a.dynamic()) a.translation += pair.move_a;

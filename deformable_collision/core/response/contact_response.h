@@ -15,6 +15,7 @@ struct SceneContact;
 struct SphereContact;
 namespace detail {
 struct SceneObject;
+class ObjectGroups;
 class PairNormals;
 }  // namespace detail
 
@@ -84,6 +85,15 @@ class ContactResponse {
     std::uint32_t node;
     double lowest_m;
   };
+  struct PairScratch;
+  /// What resolving a pair leaves to the passes after all pairs: a velocity exchange, and
+  /// with a fixed object the dynamic one's move (`serial` set when kept).
+  struct PairOutcome {
+    bool exchanged = false;
+    VelocityExchange exchange{};
+    bool fixed_move = false;
+    FixedPairMove move{};
+  };
 
   /// Reads each touching object's mean velocity once for this response.
   void readMeanVelocities();
@@ -95,7 +105,17 @@ class ContactResponse {
   /// The normal of every pair between dynamic objects, before any is resolved.
   void measureDynamicNormals(WorkerPool& pool);
   /// Resolves the pairs from the supports up.
-  void resolvePairs();
+  void resolvePairs(WorkerPool& pool);
+  /// Resolves the first `count` pairs of resolve_order_, those with a fixed object, into
+  /// fixed_outcomes_: object by object on `pool`'s threads when they are many.
+  void resolveFixedPairs(WorkerPool& pool, std::size_t count);
+  /// Below this many pairs with a fixed object they are resolved on the calling thread.
+  static constexpr std::size_t kFixedPairsWorthSharing = 32;
+  /// Computes the fixed objects' planes and spheres that resolving the first `count` pairs
+  /// of resolve_order_ reads.
+  void prepareFixedSides(std::size_t count);
+  /// Adds a resolved pair's exchange and move to the lists the later passes read.
+  void keepOutcome(PairOutcome& outcome);
   /// Moves each dynamic object by its pairs with fixed objects taken together.
   void moveByFixedPartners();
   /// Passes over the pairs' velocities after the first (velocity_exchanges_).
@@ -130,7 +150,10 @@ class ContactResponse {
   static void payDentImpulses(Object& object, const Eigen::Vector3d& paid);
   /// Adds `impulse` on `object` to the run: on its a, or against its b.
   void addImpulse(std::uint32_t run, const Object& object, const Eigen::Vector3d& impulse);
-  void resolvePair(Object& a, Object& b, std::uint32_t run);
+  /// Resolves one pair with `scratch`; reads and writes the pair's objects and run, and only
+  /// the dynamic one of a pair with a fixed object. `serial` keys the pair's dents.
+  void resolvePair(Object& a, Object& b, std::uint32_t run, PairScratch& scratch,
+                   std::uint64_t serial, PairOutcome& outcome);
   void holdClearContact(ResolvingPair& pair);
   bool heldContact(const ResolvingPair& pair);
   /// How far an object in contact was carried by its mean velocity in this cycle's step (0
@@ -142,7 +165,7 @@ class ContactResponse {
   /// Whether moving `object` along the unit `direction` drives it into a fixed object that
   /// pushed it off in this response (within 45 degrees of straight into it).
   bool againstFixedPartner(const Object& object, const Eigen::Vector3d& direction) const;
-  /// One push per contact still too deep into pushes_.
+  /// One push per contact still too deep into the pair's scratch.
   void collectPushes(const ResolvingPair& pair);
   /// The surface of the fixed object's `node` that faces the dynamic one.
   FixedSurface fixedSurface(const ResolvingPair& pair, std::uint32_t node);
@@ -152,7 +175,8 @@ class ContactResponse {
   void clearPassedPoints(ResolvingPair& pair);
   /// The least `touched.away` component of the object's points in line with the touched
   /// nodes (infinity if none).
-  double lowestInLine(Object& moving, const TouchedSurface& touched);
+  double lowestInLine(Object& moving, const TouchedSurface& touched,
+                      std::vector<ReachingNode>& descent);
   /// The push of contact `contact`, of a pair between dynamic objects.
   bool pushBetweenDynamic(const ResolvingPair& pair, std::size_t contact, ContactPush& push) const;
   void moveByMeanPush(ResolvingPair& pair);
@@ -181,8 +205,19 @@ class ContactResponse {
   std::vector<ContactRun>& contact_runs_;
   const SceneConfig& config_;
 
-  std::vector<ContactPush> pushes_;
+  /// What resolving one pair needs for itself: one per thread resolving pairs.
+  struct PairScratch {
+    std::vector<ContactPush> pushes;
+    std::vector<ReachingNode> descent;  ///< lowestInLine's nodes to visit.
+  };
+
+  /// Per thread of the pool, the first the calling thread's.
+  std::vector<PairScratch> scratch_;
   std::unique_ptr<detail::PairNormals> pair_normals_;
+  std::unique_ptr<detail::ObjectGroups> fixed_groups_;
+  /// Per pair with a fixed object, by its place in resolve_order_.
+  std::vector<PairOutcome> fixed_outcomes_;
+  std::vector<std::uint64_t> fixed_serials_;
   std::vector<std::uint32_t> support_queue_;
   std::vector<std::uint32_t> resolve_order_;  ///< contact_runs_ indices, supports first.
   /// The velocity exchanges of this response's pairs, in their order, for the later passes.
@@ -191,10 +226,9 @@ class ContactResponse {
   std::vector<std::uint32_t> neighbour_offsets_;
   std::vector<std::uint32_t> neighbour_fill_;
   std::vector<std::uint32_t> neighbours_;
-  std::vector<ReachingNode> lowest_descent_;
   std::size_t points_displaced_ = 0;  ///< By this response's dents.
   std::uint64_t cycle_count_ = 1;
-  std::uint64_t pair_serial_ = 0;  ///< Counts resolvePair calls: keys each pair's dents.
+  std::uint64_t pair_serial_ = 0;  ///< Counts resolved pairs: keys each pair's dents.
 };
 
 }  // namespace deformable_collision

@@ -137,6 +137,7 @@ void PairNormals::measure(WorkerPool& pool, Objects& objects,
                           const std::vector<SceneContact>& contacts,
                           const std::vector<ContactRun>& runs, double contact_distance_m) {
   const bool shared = pool.threads() > 1 && added_.size() >= kRunsWorthSharing;
+  if (shared) computeSpheresRead(objects, contacts, runs);
   const std::size_t lanes = shared ? static_cast<std::size_t>(pool.threads()) : 1;
   if (lanes_.size() < lanes) lanes_.resize(lanes);
   next_.store(0, std::memory_order_relaxed);
@@ -202,6 +203,23 @@ void PairNormals::measureRun(std::size_t index, Lane& lane, Objects& objects,
   for (const std::uint32_t node : lane.b.nodes) lane.b.contacts_of_node[node] = 0;
   lane.a.nodes.clear();
   lane.b.nodes.clear();
+}
+
+// The query reads a leaf's points through its bucket's columns and may leave the leaf's own
+// sphere uncomputed, and two runs with an object in common would compute it at once.
+void PairNormals::computeSpheresRead(Objects& objects, const std::vector<SceneContact>& contacts,
+                                     const std::vector<ContactRun>& runs) {
+  for (const std::uint32_t r : added_) {
+    const ContactRun& run = runs[r];
+    SphereTree& tree_a = objects[run.object_a]->tree;
+    SphereTree& tree_b = objects[run.object_b]->tree;
+    tree_a.sphere(contacts[run.begin].contact.node_a);
+    if (contacts[run.begin].contact.point_a != SphereContact::kNoPoint) continue;
+    for (std::size_t k = run.begin; k < run.end; ++k) {
+      tree_a.sphere(contacts[k].contact.node_a);
+      tree_b.sphere(contacts[k].contact.node_b);
+    }
+  }
 }
 
 void PairNormals::Side::fit(std::size_t node_count) {

@@ -19,7 +19,7 @@ void ContactResponse::collectPushes(const ResolvingPair& pair) {
     push.points_b = pair.b.tree.node(c.node_b).point_count;
     const bool pushed =
         pair.one_side_fixed ? pushFromFixedPlane(pair, c, push) : pushBetweenDynamic(pair, k, push);
-    if (pushed) pushes_.push_back(push);
+    if (pushed) pair.scratch->pushes.push_back(push);
   }
 }
 
@@ -112,11 +112,11 @@ void ContactResponse::clearPassedPoints(ResolvingPair& pair) {
   const TouchedSurface touched =
       touchedSurface(pair, (a_fixed ? -1.0 : 1.0) * pair.normal_sum.normalized());
   const Eigen::Vector3d& away = touched.away;
-  const double lowest = lowestInLine(moving, touched);
+  const double lowest = lowestInLine(moving, touched, pair.scratch->descent);
   // As in pushFromFixedPlane, the object has not moved in this response yet.
   const double depth = touched.level + 0.5 * config_.contact_distance_m - lowest;
   double deepest_push = 0.0;
-  for (const ContactPush& push : pushes_)
+  for (const ContactPush& push : pair.scratch->pushes)
     deepest_push = std::max(deepest_push, push.depth_a + push.depth_b);
   // Points past the contacts' reach are cleared; those within it only brought back within
   // the contact distance, where the next cycle's contacts see them. Even within it the
@@ -136,7 +136,8 @@ void ContactResponse::clearPassedPoints(ResolvingPair& pair) {
 // the lowest point found so far, the lowest reaching first, so that the bound tightens
 // early. The margin keeps rounding from pruning a point the scan would have taken, so the
 // result is the scan's to the bit.
-double ContactResponse::lowestInLine(Object& moving, const TouchedSurface& touched) {
+double ContactResponse::lowestInLine(Object& moving, const TouchedSurface& touched,
+                                     std::vector<ReachingNode>& descent) {
   const Eigen::Vector3d& away = touched.away;
   const auto& positions = moving.body.positions();
   const auto& indices = moving.tree.pointIndices();
@@ -152,11 +153,11 @@ double ContactResponse::lowestInLine(Object& moving, const TouchedSurface& touch
     if (!box.intersects(touched.in_line)) return std::nullopt;
     return sphere.center.dot(away) - sphere.radius - margin;
   };
-  lowest_descent_.clear();
-  if (const auto root = reach_in_line(moving.tree.sphere(0))) lowest_descent_.push_back({0, *root});
-  while (!lowest_descent_.empty()) {
-    const ReachingNode reaching = lowest_descent_.back();
-    lowest_descent_.pop_back();
+  descent.clear();
+  if (const auto root = reach_in_line(moving.tree.sphere(0))) descent.push_back({0, *root});
+  while (!descent.empty()) {
+    const ReachingNode reaching = descent.back();
+    descent.pop_back();
     if (reaching.lowest_m >= lowest) continue;
     const NodeState& state = moving.tree.current(reaching.node);
     if (state.isLeaf()) {
@@ -166,15 +167,15 @@ double ContactResponse::lowestInLine(Object& moving, const TouchedSurface& touch
       }
       continue;
     }
-    const std::size_t first_child = lowest_descent_.size();
+    const std::size_t first_child = descent.size();
     for (std::uint32_t child = state.first_child; child < state.first_child + state.child_count;
          ++child) {
       if (const auto reach = reach_in_line(moving.tree.sphere(child))) {
-        if (*reach < lowest) lowest_descent_.push_back({child, *reach});
+        if (*reach < lowest) descent.push_back({child, *reach});
       }
     }
     // The lowest reaching child last on the stack: visited next.
-    std::sort(lowest_descent_.begin() + first_child, lowest_descent_.end(),
+    std::sort(descent.begin() + first_child, descent.end(),
               [](const ReachingNode& x, const ReachingNode& y) { return x.lowest_m > y.lowest_m; });
   }
   return lowest;
@@ -222,7 +223,7 @@ void ContactResponse::moveByMeanPush(ResolvingPair& pair) {
   double weight_a = 0.0;
   double weight_b = 0.0;
   Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
-  for (const ContactPush& push : pushes_) {
+  for (const ContactPush& push : pair.scratch->pushes) {
     mean_a += push.points_a * push.depth_a * push.normal;
     mean_b -= push.points_b * push.depth_b * push.normal;
     weight_a += push.points_a;
@@ -233,7 +234,7 @@ void ContactResponse::moveByMeanPush(ResolvingPair& pair) {
   mean_b /= weight_b;
   double deepest_a = 0.0;
   double deepest_b = 0.0;
-  for (const ContactPush& push : pushes_) {
+  for (const ContactPush& push : pair.scratch->pushes) {
     deepest_a = std::max(deepest_a, push.depth_a - mean_a.dot(push.normal));
     deepest_b = std::max(deepest_b, push.depth_b + mean_b.dot(push.normal));
   }
@@ -271,7 +272,7 @@ void ContactResponse::undoStepApproach(const ResolvingPair& pair, const Eigen::V
   double depth_b = 0.0;
   double deepest_a = 0.0;
   double deepest_b = 0.0;
-  for (const ContactPush& push : pushes_) {
+  for (const ContactPush& push : pair.scratch->pushes) {
     depth_a += push.depth_a;
     depth_b += push.depth_b;
     deepest_a = std::max(deepest_a, push.depth_a);

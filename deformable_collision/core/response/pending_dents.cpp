@@ -86,18 +86,18 @@ void ContactResponse::queueDents(const ResolvingPair& pair) {
   // Above the leaves a fixed node's surface dents each point to it: a coarse node's depth
   // is its deepest point's. At the leaves a node is a few points, dented whole.
   const bool to_surface = pair.one_side_fixed && !pair.leaves;
-  for (const ContactPush& push : pushes_) {
+  for (const ContactPush& push : pair.scratch->pushes) {
     const std::optional<double> surface =
         to_surface ? std::optional<double>(push.surface_m) : std::nullopt;
     if (a.dynamic() && push.depth_a > 0.0) {
       a.dents.add(push.node_a, push.normal,
                   push.depth_a + pair.translation_before_a.dot(push.normal), pair.index_b, pair.run,
-                  pair_serial_, surface);
+                  pair.serial, surface);
     }
     if (b.dynamic() && push.depth_b > 0.0) {
       b.dents.add(push.node_b, -push.normal,
                   push.depth_b - pair.translation_before_b.dot(push.normal), pair.index_a, pair.run,
-                  pair_serial_, surface);
+                  pair.serial, surface);
     }
   }
 }

@@ -65,6 +65,11 @@ class PairNormals {
     Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   };
 
+  /// Computes, on this thread, the spheres that measuring the added runs reads: the first
+  /// contact node's of a (the origin of its moments), and above the leaves every contact
+  /// node's.
+  void computeSpheresRead(Objects& objects, const std::vector<SceneContact>& contacts,
+                          const std::vector<ContactRun>& runs);
   /// Measures added run `index` with `lane`'s scratch.
   void measureRun(std::size_t index, Lane& lane, Objects& objects,
                   const std::vector<SceneContact>& contacts, const std::vector<ContactRun>& runs,

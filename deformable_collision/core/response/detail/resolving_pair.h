@@ -38,6 +38,9 @@ struct ContactResponse::ResolvingPair {
   bool a_against_fixed = false;
   bool b_against_fixed = false;
   std::uint32_t run = 0;  ///< Its contact run.
+  ContactResponse::PairScratch* scratch = nullptr;
+  std::uint64_t serial = 0;                         ///< Keys its dents.
+  ContactResponse::PairOutcome* outcome = nullptr;  ///< Where its exchange and move go.
 };
 
 struct ContactResponse::FixedSurface {
