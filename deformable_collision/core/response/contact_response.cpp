@@ -36,13 +36,25 @@ Eigen::Vector3d stopSliding(const Eigen::Vector3d& relative, const Eigen::Vector
 
 }  // namespace
 
+// Each run's link reads its objects, and the fixed one's planes and spheres, which are
+// computed before on this thread; it writes only the run.
+void ContactResponse::markSupportLinks(WorkerPool& pool) {
+  if (pool.threads() == 1 || contact_runs_.size() < kRunsWorthSharing) {
+    for (ContactRun& run : contact_runs_) run.support_link = isSupportLink(run);
+    return;
+  }
+  prepareFixedSides();
+  pool.forEach(contact_runs_.size(), [this](std::size_t r) {
+    contact_runs_[r].support_link = isSupportLink(contact_runs_[r]);
+  });
+}
+
 void ContactResponse::rankSupport() {
   constexpr std::uint32_t kUnsupported = std::numeric_limits<std::uint32_t>::max();
   // Adjacency of the touching pairs (the contact runs), in compressed rows.
   const std::size_t count = objects_.size();
   neighbour_offsets_.assign(count + 1, 0);
-  for (ContactRun& run : contact_runs_) {
-    run.support_link = isSupportLink(run);
+  for (const ContactRun& run : contact_runs_) {
     if (!run.support_link) continue;
     ++neighbour_offsets_[run.object_a + 1];
     ++neighbour_offsets_[run.object_b + 1];
@@ -100,6 +112,7 @@ std::size_t ContactResponse::respond(WorkerPool& pool) {
     }
   }
   readMeanVelocities();
+  markSupportLinks(pool);
   rankSupport();
   for (auto& object : objects_) object->contact_memory.forgetBefore(cycle_count_);
   measureDynamicNormals(pool);

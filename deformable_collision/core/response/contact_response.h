@@ -97,7 +97,12 @@ class ContactResponse {
 
   /// Reads each touching object's mean velocity once for this response.
   void readMeanVelocities();
-  /// Counts each object's hops to a fixed one over touching objects (support_depth).
+  /// Sets each run's support_link (isSupportLink), on `pool`'s threads when they are many.
+  void markSupportLinks(WorkerPool& pool);
+  /// Below this many runs their links are marked on the calling thread. Not above
+  /// kFixedPairsWorthSharing: resolveFixedPairs shares only what this prepared.
+  static constexpr std::size_t kRunsWorthSharing = 32;
+  /// Counts each object's hops to a fixed one over the runs that link them (support_depth).
   void rankSupport();
   /// Between a fixed and a dynamic object: whether the dynamic one lay on the touched
   /// surface before this cycle's step. Between dynamic objects: true.
@@ -111,9 +116,9 @@ class ContactResponse {
   void resolveFixedPairs(WorkerPool& pool, std::size_t count);
   /// Below this many pairs with a fixed object they are resolved on the calling thread.
   static constexpr std::size_t kFixedPairsWorthSharing = 32;
-  /// Computes the fixed objects' planes and spheres that resolving the first `count` pairs
-  /// of resolve_order_ reads.
-  void prepareFixedSides(std::size_t count);
+  /// Computes, on this thread, the fixed objects' planes and contact nodes' spheres that the
+  /// runs between a fixed and a dynamic object read: on first use otherwise, from any thread.
+  void prepareFixedSides();
   /// Adds a resolved pair's exchange and move to the lists the later passes read.
   void keepOutcome(PairOutcome& outcome);
   /// Moves each dynamic object by its pairs with fixed objects taken together.

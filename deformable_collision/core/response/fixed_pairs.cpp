@@ -8,10 +8,10 @@
 namespace deformable_collision {
 
 // A pair with a fixed object writes only its dynamic object and its run, and reads the fixed
-// object's planes and contact nodes' spheres, which are computed on first use: here, before
-// the pairs are handed out. So each dynamic object's pairs are resolved on one thread in
-// their order, objects in parallel, and their outcomes kept in that order: the same bits as
-// on one thread.
+// object's planes and contact nodes' spheres, which are computed on first use: before the
+// pairs are handed out (markSupportLinks). So each dynamic object's pairs are resolved on one
+// thread in their order, objects in parallel, and their outcomes kept in that order: the same
+// bits as on one thread.
 void ContactResponse::resolveFixedPairs(WorkerPool& pool, std::size_t count) {
   fixed_groups_->clear();
   fixed_outcomes_.assign(count, PairOutcome{});
@@ -25,7 +25,6 @@ void ContactResponse::resolveFixedPairs(WorkerPool& pool, std::size_t count) {
     fixed_groups_->add(a.dynamic() ? run.object_a : run.object_b, place);
   }
   const bool shared = pool.threads() > 1 && fixed_groups_->size() >= kFixedPairsWorthSharing;
-  if (shared) prepareFixedSides(count);
   if (scratch_.size() < static_cast<std::size_t>(pool.threads())) scratch_.resize(pool.threads());
   const auto resolve = [this](std::uint32_t place, std::size_t lane) {
     const std::uint32_t r = resolve_order_[place];
@@ -42,9 +41,8 @@ void ContactResponse::resolveFixedPairs(WorkerPool& pool, std::size_t count) {
   for (PairOutcome& outcome : fixed_outcomes_) keepOutcome(outcome);
 }
 
-void ContactResponse::prepareFixedSides(std::size_t count) {
-  for (std::size_t place = 0; place < count; ++place) {
-    const ContactRun& run = contact_runs_[resolve_order_[place]];
+void ContactResponse::prepareFixedSides() {
+  for (const ContactRun& run : contact_runs_) {
     Object& a = *objects_[run.object_a];
     Object& b = *objects_[run.object_b];
     if (a.dynamic() == b.dynamic()) continue;
