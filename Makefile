@@ -30,7 +30,8 @@ test: build
 fuzz: build
 	@bash scripts/run_sanitized "$(WORKSPACE)" "$(JOBS)" fuzz "$(FUZZ_SECONDS)" "$(WORKSPACE)/fuzz_results"
 
-# 300 tracked objects, clouds at 30 Hz each, the node at 100 Hz, for LOAD_SECONDS.
+# 300 tracked objects (LOAD_CONFIG=config/load_600.yaml: 600), clouds at 30 Hz each, the
+# node at 100 Hz, for LOAD_SECONDS.
 load: build
 	@bash scripts/run_load_test "$(WORKSPACE)" "$(LOAD_SECONDS)"
 

@@ -80,10 +80,14 @@ void buildTwoObjects(Scene& scene, std::size_t points) {
   }
 }
 
-void buildPile(Scene& scene, std::size_t points) {
-  constexpr int kObjects = 300;
-  const std::size_t each = points / kObjects;
-  const double half = 0.6;
+void buildPile(Scene& scene, std::size_t points, int objects) {
+  // 6 x 6 columns for 300 objects; more objects widen the box rather than stack higher, so
+  // that they land on each other about as hard and the walls stay higher than the stack.
+  const int side = std::max(6, int(std::ceil(std::sqrt(objects / 9.0))));
+  const int columns = side * side;
+  const std::size_t each = points / objects;
+  const double half = 0.6 + 0.1 * (side - 6);
+  const double corner = -0.45 - 0.09 * (side - 6);
   scene.addObject(fixedObject("floor", ObjectKind::kStatic),
                   slab({half, half, 0.01}, 0.02, {0, 0, -0.01}));
   // Walls higher than the initial stack (about 1.6 m), so nothing falls out over them.
@@ -97,16 +101,15 @@ void buildPile(Scene& scene, std::size_t points) {
                   slab({half, 0.01, 1.0}, 0.02, {0, half + 0.01, 1.0}));
   std::mt19937_64 engine(7);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  // 6 x 6 columns, stacked as high as needed, each object in its own 0.18 m cell, turned
-  // every which way, and every other layer shifted by a quarter cell: ellipsoids dropped
-  // upright and in line stand as towers for hundreds of cycles, and a pile is what the
-  // scene is for.
-  for (int i = 0; i < kObjects; ++i) {
-    const int column = i % 36;
-    const int layer = i / 36;
+  // Each object in its own 0.18 m cell, turned every which way, and every other layer
+  // shifted by a quarter cell: ellipsoids dropped upright and in line stand as towers for
+  // hundreds of cycles, and a pile is what the scene is for.
+  for (int i = 0; i < objects; ++i) {
+    const int column = i % columns;
+    const int layer = i / columns;
     const double shift = layer % 2 ? 0.045 : -0.045;
-    const Eigen::Vector3d at(-0.45 + shift + 0.18 * (column % 6),
-                             -0.45 + shift + 0.18 * (column / 6), 0.12 + 0.18 * layer);
+    const Eigen::Vector3d at(corner + shift + 0.18 * (column % side),
+                             corner + shift + 0.18 * (column / side), 0.12 + 0.18 * layer);
     const Eigen::Vector3d radii(0.05 + 0.03 * unit(engine), 0.05 + 0.03 * unit(engine),
                                 0.04 + 0.03 * unit(engine));
     const Eigen::Vector3d axis(unit(engine) - 0.5, unit(engine) - 0.5, unit(engine) - 0.5);
@@ -144,6 +147,21 @@ void buildGripper(Scene& scene, std::size_t points) {
   driveDemoScene(DemoScene::kGripper, scene, 0.0);
 }
 
+constexpr std::size_t kPileObjects = 300;
+constexpr std::size_t kMostPileObjects = 10000;
+
+/// The pile's soft objects: `asked`, or 300 for 0.
+/// @throw std::invalid_argument for a count other than 0 for another scene, or over 10000.
+std::size_t pileObjects(DemoScene scene, std::size_t asked) {
+  if (asked == 0) return kPileObjects;
+  if (scene != DemoScene::kPile || asked > kMostPileObjects) {
+    throw std::invalid_argument(
+        std::string("scene ") + toString(scene) + " cannot be built with " + std::to_string(asked) +
+        " objects: only the pile's count is chosen, up to " + std::to_string(kMostPileObjects));
+  }
+  return asked;
+}
+
 /// A scene's soft points when none are asked for, the fewest its objects can be built from,
 /// and a contact distance of about their spacing at the default count.
 struct SceneDefaults {
@@ -152,12 +170,12 @@ struct SceneDefaults {
   double contact_distance_m;
 };
 
-SceneDefaults sceneDefaults(DemoScene scene) {
+SceneDefaults sceneDefaults(DemoScene scene, std::size_t pile_objects) {
   switch (scene) {
     case DemoScene::kTwoObjects:
       return {16000, 20, 0.025};
     case DemoScene::kPile:
-      return {131000, 300 * 10, 0.02};
+      return {131000 * pile_objects / kPileObjects, pile_objects * 10, 0.02};
     case DemoScene::kThreeObjects:
       return {19000, 60, 0.02};
     case DemoScene::kGripper:
@@ -168,10 +186,14 @@ SceneDefaults sceneDefaults(DemoScene scene) {
 
 }  // namespace
 
-std::size_t defaultPointCount(DemoScene scene) { return sceneDefaults(scene).point_count; }
+std::size_t defaultPointCount(DemoScene scene) {
+  return sceneDefaults(scene, kPileObjects).point_count;
+}
 
-std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points, SceneConfig config) {
-  const SceneDefaults defaults = sceneDefaults(scene);
+std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points, SceneConfig config,
+                                     std::size_t pile_objects) {
+  const std::size_t objects = pileObjects(scene, pile_objects);
+  const SceneDefaults defaults = sceneDefaults(scene, objects);
   if (points == 0) points = defaults.point_count;
   requirePoints(points, defaults.least_point_count, scene);
   config.gravity_mps2 =
@@ -183,7 +205,7 @@ std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points, SceneC
       buildTwoObjects(*built, points);
       break;
     case DemoScene::kPile:
-      buildPile(*built, points);
+      buildPile(*built, points, int(objects));
       break;
     case DemoScene::kThreeObjects:
       buildThreeObjects(*built, points);

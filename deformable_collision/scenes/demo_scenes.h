@@ -12,7 +12,7 @@ namespace deformable_collision {
 /// Built-in synthetic scenes, deterministic (fixed seeds), after the paper's section 7.
 enum class DemoScene {
   kTwoObjects,    ///< S1: two soft balls thrown at each other, no gravity.
-  kPile,          ///< S2: 300 soft objects falling into a box and onto each other.
+  kPile,          ///< S2: 300 (or more) soft objects falling into a box and onto each other.
   kThreeObjects,  ///< S3: a soft ball and a soft bar dropped on a floor.
   kGripper,       ///< A soft ball on a floor, squeezed by the two rigid jaws of a gripper.
 };
@@ -36,10 +36,13 @@ std::size_t defaultPointCount(DemoScene scene);
 /// Builds `scene` with about `points` points in its soft objects (0: the default count),
 /// on `config`. The scene sets gravity and, unless `config` asks for more, a contact
 /// distance of about its point spacing at the default count: point clouds are porous to
-/// each other at any shorter distance.
-/// @throw std::invalid_argument if points is too small for the scene's objects.
+/// each other at any shorter distance. `pile_objects`: the pile's soft objects (0: 300, S2);
+/// more widen its box, and its default points grow with them.
+/// @throw std::invalid_argument if points is too small for the scene's objects, or for
+/// pile_objects other than 0 on another scene or over 10000.
 std::unique_ptr<Scene> makeDemoScene(DemoScene scene, std::size_t points = 0,
-                                     SceneConfig config = SceneConfig{});
+                                     SceneConfig config = SceneConfig{},
+                                     std::size_t pile_objects = 0);
 
 /// Where kinematic object `object` of a built-in scene is at `time_s` (a pose of its rest
 /// shape); std::nullopt if the scene has no such kinematic object.

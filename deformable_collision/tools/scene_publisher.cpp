@@ -30,6 +30,7 @@ struct PublisherParams {
   std::string scene_name;
   DemoScene scene_kind;
   int points;
+  int pile_objects;
   double rate_hz;
   bool simulate;
   double settle_s;
@@ -41,6 +42,7 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
   PublisherParams params;
   params.scene_name = private_handle.param<std::string>("scene", "gripper");
   params.points = private_handle.param("points", 0);
+  params.pile_objects = private_handle.param("pile_objects", 0);
   params.rate_hz = private_handle.param("rate_hz", 10.0);
   params.simulate = private_handle.param("simulate", false);
   params.settle_s = private_handle.param("settle_s", 0.0);
@@ -55,11 +57,11 @@ std::optional<PublisherParams> readParams(const ros::NodeHandle& private_handle)
   }
   params.scene_kind = *scene_kind;
   if (!(params.rate_hz >= 10.0 && params.rate_hz <= 1000.0) || params.points < 0 ||
-      !(params.settle_s >= 0.0 && params.settle_s <= 60.0)) {
+      params.pile_objects < 0 || !(params.settle_s >= 0.0 && params.settle_s <= 60.0)) {
     ROS_FATAL(
         "~rate_hz = %g must be in [10, 1000] (one scene step per cloud, dt <= 0.1 s), "
-        "~points = %d >= 0 and ~settle_s = %g in [0, 60]",
-        params.rate_hz, params.points, params.settle_s);
+        "~points = %d and ~pile_objects = %d >= 0 and ~settle_s = %g in [0, 60]",
+        params.rate_hz, params.points, params.pile_objects, params.settle_s);
     return std::nullopt;
   }
   return params;
@@ -145,7 +147,8 @@ int main(int argc, char** argv) {
   std::unique_ptr<deformable_collision::Scene> scene;
   try {
     scene = deformable_collision::makeDemoScene(params->scene_kind,
-                                                static_cast<std::size_t>(params->points), config);
+                                                static_cast<std::size_t>(params->points), config,
+                                                static_cast<std::size_t>(params->pile_objects));
   } catch (const std::exception& e) {
     ROS_FATAL("cannot build scene '%s': %s", params->scene_name.c_str(), e.what());
     return 1;

@@ -69,6 +69,34 @@ INSTANTIATE_TEST_SUITE_P(
                       SceneCase{"pile", DemoScene::kPile, 15000, 120, 1}),
     [](const auto& info) { return std::string(info.param.name); });
 
+// A pile of more objects than S2's 300 spreads over a wider box: every object starts and
+// stays between the walls and below their tops, and only the pile's count is chosen.
+TEST(Scene, ALargerPileStandsInAWiderBox) {
+  auto scene = makeDemoScene(DemoScene::kPile, 12000, SceneConfig{}, 600);
+  ASSERT_EQ(scene->objectCount(), 605u);
+  const auto inside = [&](const char* wall, int axis, double side) {
+    const auto& walls = scene->body(*scene->findObject(wall)).positions();
+    double face = side * std::numeric_limits<double>::infinity();
+    for (const auto& p : walls) face = side > 0 ? std::min(face, p[axis]) : std::max(face, p[axis]);
+    for (std::size_t o = 5; o < scene->objectCount(); ++o) {
+      for (const auto& p : scene->body(o).positions()) {
+        if (side * (face - p[axis]) <= 0.0 || p.z() > 2.0) return false;
+      }
+    }
+    return true;
+  };
+  const auto between_the_walls = [&] {
+    return inside("wall_x_minus", 0, -1.0) && inside("wall_x_plus", 0, 1.0) &&
+           inside("wall_y_minus", 1, -1.0) && inside("wall_y_plus", 1, 1.0);
+  };
+  EXPECT_TRUE(between_the_walls()) << "at the start";
+  for (int cycle = 0; cycle < 60; ++cycle) scene->cycle();
+  ASSERT_TRUE(allFinite(*scene));
+  EXPECT_TRUE(between_the_walls()) << "after 60 cycles";
+  EXPECT_THROW(makeDemoScene(DemoScene::kGripper, 0, SceneConfig{}, 2), std::invalid_argument);
+  EXPECT_THROW(makeDemoScene(DemoScene::kPile, 0, SceneConfig{}, 20000), std::invalid_argument);
+}
+
 TEST(Scene, StaticObjectsNeverMove) {
   auto scene = makeDemoScene(DemoScene::kThreeObjects, 9000);
   const std::size_t floor = *scene->findObject("floor");
