@@ -26,6 +26,8 @@ constexpr std::chrono::milliseconds kIdleWait(100);
 /// Clouds applied early are detected ahead of their cycle once none came for this long: a
 /// pass for every cloud would pay the sweep and the copy of the kept contacts each time.
 constexpr std::chrono::microseconds kQuietBeforeDetectingAhead(500);
+/// ~hierarchy and ~contact_markers: the marker arrays a cycle queues besides its clouds.
+constexpr std::size_t kQueuedMarkerArrays = 2;
 
 NodeConfig loadConfig(const ros::NodeHandle& private_handle) {
   XmlRpc::XmlRpcValue params;
@@ -77,6 +79,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
       outputs_(Clock::now(), cycle_period_),
       distance_outputs_(config_.distance_pairs),
       diagnostics_(config_.diagnostics, slots_, outputs_),
+      publish_queue_(config_.objects.size() + kQueuedMarkerArrays),
       reader_spinner_(1, &reader_queue_) {
   for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
   taken_slots_.reserve(slots_.size());
@@ -374,8 +377,8 @@ void DeformableCollisionNode::runCycle() {
   times.contacts_published_ros = ros::Time::now();
   const std::optional<Clock::time_point> oldest_input = recordLatencies(times);
   distance_outputs_.publish(scene_, namedObjects(), header);
-  outputs_.publishMarkers(scene_, config_.markers_colliding_only, header);
-  outputs_.publishForces(scene_, config_.force_marker_scale_m_per_n, header);
+  outputs_.publishMarkers(scene_, config_.markers_colliding_only, header, publish_queue_);
+  outputs_.publishForces(scene_, config_.force_marker_scale_m_per_n, header, publish_queue_);
   publishWrenches(header.stamp);
   const std::size_t points = publishDeformed(header);
   times.published = Clock::now();
@@ -440,7 +443,7 @@ std::size_t DeformableCollisionNode::publishDeformed(const std_msgs::Header& hea
     writeCloudPoints(
         positions, *cloud,
         slot.float64 ? sensor_msgs::PointField::FLOAT64 : sensor_msgs::PointField::FLOAT32);
-    slot.deformed.publish(cloud);
+    publish_queue_.post(slot.deformed, cloud);
   }
   return points;
 }

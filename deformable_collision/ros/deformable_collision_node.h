@@ -28,6 +28,7 @@
 #include "deformable_collision/ros/node_reconfigure.h"
 #include "deformable_collision/ros/object_slot.h"
 #include "deformable_collision/ros/point_cloud_conversion.h"
+#include "deformable_collision/ros/publish_queue.h"
 
 namespace deformable_collision {
 
@@ -192,6 +193,9 @@ class DeformableCollisionNode {
   NodeOutputs outputs_;
   DistanceOutputs distance_outputs_;
   NodeDiagnostics diagnostics_;
+  /// The markers and deformed clouds, published off the cycle's thread; after the
+  /// publishers it uses, so it stops first. A slot per object's cloud and per marker array.
+  PublishQueue<CountedPublisher> publish_queue_;
 
   // Last: they start after everything they use exists and stop before it goes.
   ros::AsyncSpinner reader_spinner_;

@@ -91,8 +91,8 @@ void ForceOutputs::advertise(ros::NodeHandle& handle) {
   markers_publisher_.advertise<visualization_msgs::MarkerArray>(handle, "contact_markers", 1);
 }
 
-void ForceOutputs::publish(const Scene& scene, double scale_m_per_n,
-                           const std_msgs::Header& header) {
+void ForceOutputs::publish(const Scene& scene, double scale_m_per_n, const std_msgs::Header& header,
+                           PublishQueue<CountedPublisher>& queue) {
   if (!summary_publisher_.subscribed() && !markers_publisher_.subscribed()) return;
   summarizePairs(scene.contacts(), summaries_);
   if (summary_publisher_.subscribed()) {
@@ -104,7 +104,7 @@ void ForceOutputs::publish(const Scene& scene, double scale_m_per_n,
   if (markers_publisher_.subscribed()) {
     auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
     buildContactForceMarkers(scene, summaries_, scale_m_per_n, header, *markers);
-    markers_publisher_.publish(markers);
+    queue.post(markers_publisher_, markers);
   }
 }
 

@@ -10,6 +10,7 @@
 #include "deformable_collision/core/response/contact_totals.h"
 #include "deformable_collision/core/scene/scene.h"
 #include "deformable_collision/ros/counted_publisher.h"
+#include "deformable_collision/ros/publish_queue.h"
 
 namespace deformable_collision {
 
@@ -31,7 +32,9 @@ class ForceOutputs {
  public:
   /// Advertises both on `handle`, whose queue must be the cycle's (CountedPublisher).
   void advertise(ros::NodeHandle& handle);
-  void publish(const Scene& scene, double scale_m_per_n, const std_msgs::Header& header);
+  /// The summary is published at once (a controller's input), the markers through `queue`.
+  void publish(const Scene& scene, double scale_m_per_n, const std_msgs::Header& header,
+               PublishQueue<CountedPublisher>& queue);
 
  private:
   CountedPublisher summary_publisher_;

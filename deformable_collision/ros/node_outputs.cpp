@@ -35,12 +35,12 @@ void NodeOutputs::publishContacts(const Scene& scene, const std_msgs::Header& he
   contacts_publisher_.publish(contacts_message_);
 }
 
-void NodeOutputs::publishMarkers(Scene& scene, bool colliding_only,
-                                 const std_msgs::Header& header) {
+void NodeOutputs::publishMarkers(Scene& scene, bool colliding_only, const std_msgs::Header& header,
+                                 PublishQueue<CountedPublisher>& queue) {
   if (!hierarchy_publisher_.subscribed() || scene.objectCount() == 0) return;
   auto markers = boost::make_shared<visualization_msgs::MarkerArray>();
   markers_.build(scene, scene.stats().level, scene.contacts(), colliding_only, header, *markers);
-  hierarchy_publisher_.publish(markers);
+  queue.post(hierarchy_publisher_, markers);
 }
 
 // Cycles and overruns count whether or not anyone listens: a later subscriber sees all.

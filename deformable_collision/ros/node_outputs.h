@@ -57,12 +57,15 @@ class NodeOutputs {
   void advertise(ros::NodeHandle& handle);
   /// ~contacts: the scene's contacts of its last cycle.
   void publishContacts(const Scene& scene, const std_msgs::Header& header);
-  /// ~contact_summary and ~contact_markers of the last cycle's contacts.
-  void publishForces(const Scene& scene, double scale_m_per_n, const std_msgs::Header& header) {
-    forces_.publish(scene, scale_m_per_n, header);
+  /// ~contact_summary and ~contact_markers of the last cycle's contacts, the markers
+  /// through `queue`.
+  void publishForces(const Scene& scene, double scale_m_per_n, const std_msgs::Header& header,
+                     PublishQueue<CountedPublisher>& queue) {
+    forces_.publish(scene, scale_m_per_n, header, queue);
   }
-  /// ~hierarchy: the spheres of the last cycle's level.
-  void publishMarkers(Scene& scene, bool colliding_only, const std_msgs::Header& header);
+  /// ~hierarchy: the spheres of the last cycle's level, built here, published by `queue`.
+  void publishMarkers(Scene& scene, bool colliding_only, const std_msgs::Header& header,
+                      PublishQueue<CountedPublisher>& queue);
   CloudLatencies& latencies() { return latencies_; }
   const CloudLatencies& latencies() const { return latencies_; }
   /// Cycles since start, and of them those longer than the cycle period.
