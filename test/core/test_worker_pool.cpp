@@ -1,5 +1,5 @@
-// WorkerPool: every iteration runs once, on any number of threads, loop after loop; a
-// throwing iteration is reported once all have returned.
+// WorkerPool: every iteration runs once, on any number of threads, loop after loop; no two
+// calls at once share a lane; a throwing iteration is reported once all have returned.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -26,6 +26,29 @@ TEST(WorkerPool, RunsEveryIterationOnceOnAnyNumberOfThreads) {
         ASSERT_EQ(calls[i].load(), 20) << threads << " threads, " << count << " iterations";
       }
     }
+  }
+}
+
+// A lane is a call's scratch: it is in range, and a call finds its lane free.
+TEST(WorkerPool, NoTwoCallsAtOnceShareALane) {
+  for (const int threads : {1, 2, 4}) {
+    WorkerPool pool(threads);
+    std::vector<std::atomic<bool>> busy(static_cast<std::size_t>(threads));
+    std::atomic<int> clashes{0}, out_of_range{0}, calls{0};
+    pool.forEachOnLane(2000, [&](std::size_t i, std::size_t lane) {
+      if (lane >= busy.size()) {
+        ++out_of_range;
+        return;
+      }
+      if (busy[lane].exchange(true)) ++clashes;
+      volatile double x = static_cast<double>(i);
+      for (int k = 0; k < 200; ++k) x = x * 1.0000001 + 0.5;
+      busy[lane].store(false);
+      ++calls;
+    });
+    EXPECT_EQ(out_of_range.load(), 0) << threads << " threads";
+    EXPECT_EQ(clashes.load(), 0) << threads << " threads";
+    EXPECT_EQ(calls.load(), 2000) << threads << " threads";
   }
 }
 

@@ -12,7 +12,9 @@ WorkerPool::WorkerPool(int threads) {
                                 std::to_string(kMaxThreads) + "]");
   }
   workers_.reserve(static_cast<std::size_t>(threads - 1));
-  for (int t = 1; t < threads; ++t) workers_.emplace_back([this] { workerLoop(); });
+  for (int t = 1; t < threads; ++t) {
+    workers_.emplace_back([this, t] { workerLoop(static_cast<std::size_t>(t)); });
+  }
 }
 
 WorkerPool::~WorkerPool() {
@@ -36,7 +38,7 @@ void WorkerPool::run(std::size_t count, Call call, const void* context) {
     ++generation_;
   }
   started_.notify_all();
-  work();
+  work(0);
   // The workers' last iterations end about when the caller's do: waiting for them on the
   // condition variable would add a wake-up, tens of microseconds, to most loops.
   const auto spin_until = std::chrono::steady_clock::now() + kFinishSpin;
@@ -48,10 +50,10 @@ void WorkerPool::run(std::size_t count, Call call, const void* context) {
   if (failure_) std::rethrow_exception(failure_);
 }
 
-void WorkerPool::work() {
+void WorkerPool::work(std::size_t lane) {
   for (std::size_t i = next_.fetch_add(1); i < count_; i = next_.fetch_add(1)) {
     try {
-      call_(context_, i);
+      call_(context_, i, lane);
     } catch (...) {
       std::lock_guard<std::mutex> lock(mutex_);
       if (!failure_) failure_ = std::current_exception();
@@ -59,7 +61,7 @@ void WorkerPool::work() {
   }
 }
 
-void WorkerPool::workerLoop() {
+void WorkerPool::workerLoop(std::size_t lane) {
   std::uint64_t seen = 0;
   for (;;) {
     {
@@ -68,7 +70,7 @@ void WorkerPool::workerLoop() {
       if (stopping_) return;
       seen = generation_;
     }
-    work();
+    work(lane);
     bool last = false;
     {
       std::lock_guard<std::mutex> lock(mutex_);

@@ -34,24 +34,34 @@ class WorkerPool {
   /// throws is thrown here once all have returned; the other iterations still run.
   template <typename Body>
   void forEach(std::size_t count, const Body& body) {
+    forEachOnLane(count, [&body](std::size_t i, std::size_t) { body(i); });
+  }
+
+  /// forEach(), calling body(i, lane): `lane` is in [0, threads()) and no two calls at once
+  /// share one, so that a call may use the lane's scratch (the caller is lane 0).
+  template <typename Body>
+  void forEachOnLane(std::size_t count, const Body& body) {
     if (workers_.empty() || count < 2) {
-      for (std::size_t i = 0; i < count; ++i) body(i);
+      for (std::size_t i = 0; i < count; ++i) body(i, 0);
       return;
     }
     run(
-        count, [](const void* context, std::size_t i) { (*static_cast<const Body*>(context))(i); },
+        count,
+        [](const void* context, std::size_t i, std::size_t lane) {
+          (*static_cast<const Body*>(context))(i, lane);
+        },
         &body);
   }
 
  private:
-  using Call = void (*)(const void* context, std::size_t index);
+  using Call = void (*)(const void* context, std::size_t index, std::size_t lane);
   /// How long a caller done with its iterations spins for the workers before it sleeps.
   static constexpr std::chrono::microseconds kFinishSpin{50};
 
   void run(std::size_t count, Call call, const void* context);
-  /// Takes iterations until none is left.
-  void work();
-  void workerLoop();
+  /// Takes iterations until none is left, on `lane`.
+  void work(std::size_t lane);
+  void workerLoop(std::size_t lane);
 
   std::vector<std::thread> workers_;
   std::mutex mutex_;

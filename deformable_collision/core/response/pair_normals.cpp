@@ -138,16 +138,16 @@ void PairNormals::measure(WorkerPool& pool, Objects& objects,
                           const std::vector<ContactRun>& runs, double contact_distance_m) {
   const bool shared = pool.threads() > 1 && added_.size() >= kRunsWorthSharing;
   if (shared) computeSpheresRead(objects, contacts, runs);
-  const std::size_t lanes = shared ? static_cast<std::size_t>(pool.threads()) : 1;
-  if (lanes_.size() < lanes) lanes_.resize(lanes);
-  next_.store(0, std::memory_order_relaxed);
-  // Each lane takes the next run left: runs differ much in contacts.
-  pool.forEach(lanes, [&](std::size_t lane) {
-    for (std::size_t i = next_.fetch_add(1, std::memory_order_relaxed); i < added_.size();
-         i = next_.fetch_add(1, std::memory_order_relaxed)) {
-      measureRun(i, lanes_[lane], objects, contacts, runs, contact_distance_m);
-    }
-  });
+  const auto threads = static_cast<std::size_t>(pool.threads());
+  if (lanes_.size() < threads) lanes_.resize(threads);
+  const auto measure_run = [&](std::size_t i, std::size_t lane) {
+    measureRun(i, lanes_[lane], objects, contacts, runs, contact_distance_m);
+  };
+  if (shared) {
+    pool.forEachOnLane(added_.size(), measure_run);
+  } else {
+    for (std::size_t i = 0; i < added_.size(); ++i) measure_run(i, 0);
+  }
 }
 
 // Between two dynamic objects every push goes along one normal: the direction that

@@ -2,7 +2,6 @@
 // installed.
 #pragma once
 
-#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -32,12 +31,9 @@ class ObjectGroups {
   template <typename Body>
   void run(WorkerPool& pool, const Body& body) {
     group();
-    next_.store(0, std::memory_order_relaxed);
-    pool.forEach(static_cast<std::size_t>(pool.threads()), [&](std::size_t lane) {
-      for (std::size_t g = next_.fetch_add(1, std::memory_order_relaxed); g + 1 < starts_.size();
-           g = next_.fetch_add(1, std::memory_order_relaxed)) {
-        for (std::size_t i = starts_[g]; i < starts_[g + 1]; ++i) body(items_[i].second, lane);
-      }
+    // An object's items stay on one lane, in order.
+    pool.forEachOnLane(starts_.size() - 1, [&](std::size_t g, std::size_t lane) {
+      for (std::size_t i = starts_[g]; i < starts_[g + 1]; ++i) body(items_[i].second, lane);
     });
   }
 
@@ -46,8 +42,7 @@ class ObjectGroups {
   void group();
 
   std::vector<std::pair<std::uint32_t, std::uint32_t>> items_;  ///< (object, item).
-  std::vector<std::size_t> starts_;   ///< Each object's first item, then items_.size().
-  std::atomic<std::size_t> next_{0};  ///< The next object a lane takes.
+  std::vector<std::size_t> starts_;  ///< Each object's first item, then items_.size().
 };
 
 }  // namespace detail

@@ -3,7 +3,6 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -80,7 +79,6 @@ class PairNormals {
   std::vector<double> reach_a_;       ///< By contact.
   std::vector<double> reach_b_;
   std::vector<Lane> lanes_;
-  std::atomic<std::size_t> next_{0};  ///< The next added run a lane takes.
 };
 
 }  // namespace detail
