@@ -49,12 +49,12 @@ void CloudReader::countBusy(Clock::time_point start) {
 
 void CloudReader::receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, std::size_t index) {
   ObjectSlot& slot = slots_[index];
-  auto& awaiting = readers_[index].awaiting_transform;
   ++clouds_received_;
   const auto arrival = Clock::now();
-  const ros::Time arrival_ros = ros::Time::now();
-  watchRosTime(arrival_ros);
+  const RosTimeSeen seen = watchRosTime();
   countArrival(slot, arrival);
+  std::lock_guard<std::mutex> lock(readers_[index].mutex);
+  auto& awaiting = readers_[index].awaiting_transform;
   // Behind older clouds that wait for their transform, in arrival order: a tracked object
   // must not step back, and a sensor whose tf always lags keeps every cloud. A cloud in a
   // frame tf does not know would only take the place of one that can still be placed.
@@ -70,12 +70,12 @@ void CloudReader::receiveCloud(const sensor_msgs::PointCloud2ConstPtr& cloud, st
           slot, ros::console::levels::Warn,
           "more than " + std::to_string(kMaxAwaitingClouds) + " clouds wait for their transform");
     }
-    awaiting.push_back({cloud, arrival, arrival_ros});
-    retryAwaitingClouds(index, arrival_ros);
+    awaiting.push_back({cloud, arrival, seen.now, seen.jumps});
+    retryAwaitingClouds(index, seen.now);
     return;
   }
   if (!processCloud(index, *cloud, arrival, config_.tf_wait_s == 0.0)) {
-    awaiting.push_back({cloud, arrival, arrival_ros});
+    awaiting.push_back({cloud, arrival, seen.now, seen.jumps});
   }
 }
 
@@ -98,13 +98,14 @@ bool CloudReader::tfFilling() const {
   // ROS time too, from the first time seen or the last jump back, after which tf starts
   // empty again: a bag may start long after the node.
   const double fill_s = std::max(config_.tf_wait_s, kTfFillMinimumS);
-  return std::chrono::duration<double>(Clock::now() - started_).count() < fill_s ||
-         (ros::Time::now() - fill_started_ros_).toSec() < fill_s;
+  if (std::chrono::duration<double>(Clock::now() - started_).count() < fill_s) return true;
+  std::lock_guard<std::mutex> lock(time_mutex_);
+  return (ros::Time::now() - fill_started_ros_).toSec() < fill_s;
 }
 
 bool CloudReader::tfFromBeforeJump(const std::string& target_frame,
                                    const std::string& source_frame) {
-  if (!tf_from_before_jump_) return false;
+  if (!tfFromBeforeJumpPossible()) return false;
   // tf's listener drops its transforms only when the first of the new time comes: until
   // then, the newest it has is from the time before the jump, ahead of the clock.
   try {
@@ -113,8 +114,14 @@ bool CloudReader::tfFromBeforeJump(const std::string& target_frame,
     if (newest > ros::Time::now()) return true;
   } catch (const tf2::TransformException&) {
   }
+  std::lock_guard<std::mutex> lock(time_mutex_);
   tf_from_before_jump_ = false;
   return false;
+}
+
+bool CloudReader::tfFromBeforeJumpPossible() const {
+  std::lock_guard<std::mutex> lock(time_mutex_);
+  return tf_from_before_jump_;
 }
 
 const std::string& CloudReader::targetFrame(const ObjectSlot& slot) const {
@@ -133,32 +140,55 @@ std::string CloudReader::unknownFrameProblem(const ObjectSlot& slot,
 
 void CloudReader::retryAwaitingClouds() {
   const auto start = Clock::now();
-  const ros::Time now = ros::Time::now();
-  watchRosTime(now);
-  for (std::size_t index = 0; index < slots_.size(); ++index) retryAwaitingClouds(index, now);
+  const ros::Time now = watchRosTime().now;
+  for (std::size_t index = 0; index < slots_.size(); ++index) {
+    std::lock_guard<std::mutex> lock(readers_[index].mutex);
+    retryAwaitingClouds(index, now);
+  }
   countBusy(start);
 }
 
-void CloudReader::watchRosTime(const ros::Time& now) {
-  const bool went_back = now < latest_ros_;
-  if (latest_ros_.isZero() || went_back) fill_started_ros_ = now;
-  latest_ros_ = now;
-  if (!went_back) return;
-  tf_from_before_jump_ = true;
-  for (std::size_t index = 0; index < slots_.size(); ++index) {
-    auto& awaiting = readers_[index].awaiting_transform;
-    for (std::size_t k = 0; k < awaiting.size(); ++k) {
-      dropCloud(slots_[index], ros::console::levels::Warn,
-                "ROS time went back while it waited for its transform (a looped bag?)");
-    }
-    awaiting.clear();
+CloudReader::RosTimeSeen CloudReader::watchRosTime() {
+  RosTimeSeen seen;
+  {
+    // Read under the lock, so that the reader threads see ROS time in the order they read it:
+    // one that read it earlier and came later would take its time for a jump back.
+    std::lock_guard<std::mutex> lock(time_mutex_);
+    seen.now = ros::Time::now();
+    const bool went_back = seen.now < latest_ros_;
+    if (latest_ros_.isZero() || went_back) fill_started_ros_ = seen.now;
+    latest_ros_ = seen.now;
+    jumps_ += went_back;
+    seen.jumps = jumps_;
+    if (!went_back) return seen;
+    tf_from_before_jump_ = true;
   }
+  for (std::size_t index = 0; index < slots_.size(); ++index) {
+    dropCloudsFromBefore(index, seen.jumps);
+  }
+  return seen;
+}
+
+void CloudReader::dropCloudsFromBefore(std::size_t index, std::uint64_t jumps) {
+  std::lock_guard<std::mutex> lock(readers_[index].mutex);
+  auto& awaiting = readers_[index].awaiting_transform;
+  // A cloud that another reader thread read after the jump stays.
+  const auto from_before = [&](const AwaitingCloud& c) { return c.jumps_before < jumps; };
+  const auto kept = std::remove_if(awaiting.begin(), awaiting.end(), from_before);
+  for (auto it = kept; it != awaiting.end(); ++it) {
+    dropCloud(slots_[index], ros::console::levels::Warn,
+              "ROS time went back while it waited for its transform (a looped bag?)");
+  }
+  awaiting.erase(kept, awaiting.end());
 }
 
 void CloudReader::retryAwaitingClouds(std::size_t index, const ros::Time& now) {
   auto& awaiting = readers_[index].awaiting_transform;
   while (!awaiting.empty()) {
-    const AwaitingCloud& oldest = awaiting.front();
+    AwaitingCloud& oldest = awaiting.front();
+    // A cloud that came before ROS time started (sim time before the first /clock) waits from
+    // the first time seen, not from 0.
+    if (oldest.arrival_ros.isZero()) oldest.arrival_ros = now;
     // ROS time, so that a bag played slower than real time gives its tf as long as live.
     const bool last_try = (now - oldest.arrival_ros).toSec() >= config_.tf_wait_s;
     // tf arrives in time order: while the oldest cannot be placed, the newer wait too.

@@ -23,13 +23,15 @@
 
 namespace deformable_collision {
 
-/// The node's reader side, run by its reader thread: converts each object's cloud,
+/// The node's reader side, run by its reader threads: converts each object's cloud,
 /// transforms it by tf into the object's frame and checks it, makes new objects
 /// (Scene::prepareObject), fits tracked ones to their clouds (TrackedFitter) and registers
 /// registered ones (RegistrationFitter), then hands each to the cycle (CloudHandoff). A
 /// cloud whose transform has not come waits, in arrival order, up to tf_wait_s of ROS time
-/// (a bag's clock when it plays with --clock). It alone touches
-/// its per-object state; the drop reports (either thread) are guarded by a mutex of its own.
+/// (a bag's clock when it plays with --clock). Clouds of different objects are read on
+/// different threads at once (the subscriptions' callbacks, never two of one object at once,
+/// and the retry timer's): each object's state has a mutex, the ROS time watch one, the
+/// counters are atomic, and the drop reports (either thread) have a mutex of their own.
 class CloudReader {
  public:
   using Clock = std::chrono::steady_clock;
@@ -61,18 +63,26 @@ class CloudReader {
   std::uint64_t cloudsReceived() const { return clouds_received_; }
   std::uint64_t cloudsRejected() const { return clouds_rejected_; }
   std::uint64_t nonFinitePoints() const { return non_finite_points_; }
-  /// The time onCloud() and retryAwaitingClouds() took since construction: the reader
-  /// thread's load, which registrations make the largest part of.
+  /// The time onCloud() and retryAwaitingClouds() took since construction, summed over the
+  /// reader's threads: their load, which registrations make the largest part of.
   double busySeconds() const { return static_cast<double>(busy_ns_) * 1e-9; }
 
  private:
   struct AwaitingCloud {
     sensor_msgs::PointCloud2ConstPtr cloud;
     Clock::time_point arrival;
-    ros::Time arrival_ros;  ///< What tf_wait_s is measured from.
+    ros::Time arrival_ros;           ///< What tf_wait_s is measured from.
+    std::uint64_t jumps_before = 0;  ///< Jumps back of ROS time seen before it came.
   };
-  /// The reader's state of one object.
+  /// ROS time as watchRosTime() read it, and the jumps back seen until then.
+  struct RosTimeSeen {
+    ros::Time now;
+    std::uint64_t jumps = 0;
+  };
+  /// The reader's state of one object, touched only under its mutex: the clouds of
+  /// different objects are read on different threads at once, one object's in order.
   struct ObjectReader {
+    std::mutex mutex;
     ReadCloud cloud;  ///< The cloud being read; handed over by a swap.
     /// Clouds whose transform was not there yet, oldest first, retried in that order on
     /// the retry timer and on each new cloud, each until tf_wait_s after its arrival.
@@ -106,6 +116,7 @@ class CloudReader {
   /// Whether, since ROS time went back, tf still holds the transforms of the time before
   /// between these frames; once it does not, false from then on.
   bool tfFromBeforeJump(const std::string& target_frame, const std::string& source_frame);
+  bool tfFromBeforeJumpPossible() const;
   /// The frame a cloud of this object is placed in: its follow_frame or the fixed frame.
   const std::string& targetFrame(const ObjectSlot& slot) const;
   /// Why a cloud cannot ever be placed because tf knows no such frame; empty if it can be.
@@ -113,9 +124,12 @@ class CloudReader {
   void retryAwaitingClouds(std::size_t slot, const ros::Time& now);
   /// Whether a tracked object's waiting cloud must wait for a followed frame at `stamp` too.
   bool followFramesBehind(std::size_t slot, const ros::Time& stamp) const;
-  /// Notes ROS time `now`; if it went back (a looped bag), the waiting clouds, whose
-  /// transforms belonged to the time before, are dropped.
-  void watchRosTime(const ros::Time& now);
+  /// Reads and notes ROS time; if it went back (a looped bag), the waiting clouds, whose
+  /// transforms belonged to the time before, are dropped. Call it holding no object's mutex.
+  RosTimeSeen watchRosTime();
+  /// Drops object `index`'s waiting clouds that came before the jumps back of ROS time
+  /// counted in `jumps`.
+  void dropCloudsFromBefore(std::size_t index, std::uint64_t jumps);
   /// False if the cloud waits for its transform.
   bool processCloud(std::size_t slot, const sensor_msgs::PointCloud2& cloud,
                     Clock::time_point arrival, bool last_try);
@@ -161,8 +175,12 @@ class CloudReader {
   const tf2_ros::Buffer& tf_buffer_;
   const std::function<void()> wake_cycle_;
   const Clock::time_point started_;
+  /// Guards the ROS time watch: latest_ros_, fill_started_ros_, jumps_, tf_from_before_jump_.
+  /// Taken after an object's mutex, never before one.
+  mutable std::mutex time_mutex_;
   ros::Time latest_ros_;              ///< The latest ROS time seen, to notice a jump back.
   ros::Time fill_started_ros_;        ///< The first ROS time seen, or the last jump back's.
+  std::uint64_t jumps_ = 0;           ///< Jumps back of ROS time seen.
   bool tf_from_before_jump_ = false;  ///< See tfFromBeforeJump().
   std::vector<ObjectReader> readers_;
   std::mutex report_mutex_;

@@ -57,6 +57,15 @@ std::vector<bool> cloudsStartingCycles(const NodeConfig& config) {
   return starting;
 }
 
+/// The reader's threads: `threads`, but no more than there are objects with clouds, since
+/// one object's clouds are read in order, one at a time.
+std::uint32_t readerThreads(const NodeConfig& config) {
+  const auto with_clouds = std::count_if(config.objects.begin(), config.objects.end(),
+                                         [](const ObjectParams& o) { return !o.topic.empty(); });
+  return static_cast<std::uint32_t>(
+      std::max<std::ptrdiff_t>(1, std::min<std::ptrdiff_t>(config.scene.threads, with_clouds)));
+}
+
 }  // namespace
 
 DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
@@ -80,7 +89,7 @@ DeformableCollisionNode::DeformableCollisionNode(ros::NodeHandle node_handle,
       distance_outputs_(config_.distance_pairs),
       diagnostics_(config_.diagnostics, slots_, outputs_),
       publish_queue_(config_.objects.size() + kQueuedMarkerArrays),
-      reader_spinner_(1, &reader_queue_) {
+      reader_spinner_(readerThreads(config_), &reader_queue_) {
   for (std::size_t i = 0; i < slots_.size(); ++i) slots_[i].params = config_.objects[i];
   taken_slots_.reserve(slots_.size());
   applied_slots_.reserve(slots_.size());

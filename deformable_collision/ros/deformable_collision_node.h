@@ -34,8 +34,9 @@ namespace deformable_collision {
 
 /// The ROS side of the package: reads the configuration, turns clouds into scene objects,
 /// runs the scene's cycle on a timer or on arriving clouds, and publishes what is
-/// subscribed. Two threads of its own, so that reading a cloud never delays a cycle:
-/// - the reader (reader_queue_, one spinner thread) runs the cloud subscriptions and the
+/// subscribed. Threads of its own, so that reading a cloud never delays a cycle:
+/// - the reader (reader_queue_, `threads` spinner threads, at most one per object with a
+///   topic; one object's clouds in order, one at a time) runs the cloud subscriptions and the
 ///   retries of clouds waiting for tf: reader_ (CloudReader) converts, transforms and
 ///   checks each cloud, makes new objects, fits tracked ones to their clouds and registers
 ///   registered ones, and hands each to the cycle through handoff_.
