@@ -3,8 +3,6 @@
 // (docs/design.md, registration).
 #include "deformable_collision/core/registration/cloud_registration.h"
 
-#include <nanoflann.hpp>
-
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -18,27 +16,14 @@
 
 #include "deformable_collision/core/common/linear_algebra.h"
 #include "deformable_collision/core/common/nearest_point_index.h"
+#include "deformable_collision/core/registration/detail/rest_normals.h"
 #include "deformable_collision/core/registration/detail/spread_points.h"
+#include "deformable_collision/core/registration/detail/view_information.h"
 
 namespace deformable_collision {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-/// The model's matching points at their current positions, as nanoflann reads them.
-struct MatchingPoints {
-  std::vector<Eigen::Vector3d> positions;
-  std::size_t kdtree_get_point_count() const { return positions.size(); }
-  double kdtree_get_pt(std::size_t index, std::size_t dim) const { return positions[index][dim]; }
-  template <class BoundingBox>
-  bool kdtree_get_bbox(BoundingBox& /*box*/) const {
-    return false;
-  }
-};
-
-using MatchingTree =
-    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, MatchingPoints>,
-                                        MatchingPoints, 3, std::uint32_t>;
 
 /// A match below this multiple of the round's median distance is kept: well above the
 /// spread of noise about a surface, well below a table or a hand a few centimetres off.
@@ -62,64 +47,12 @@ constexpr double kRigidStepPriorShare = 0.1;
 /// it turns), and noise turned a still fruit by degrees. Chosen on bench_registration_zoo.
 constexpr double kRigidTurnPriorShare = 1.0;
 
-/// Neighbours whose spread gives a matching point's surface normal.
-constexpr std::size_t kNormalNeighbours = 12;
-/// A neighbourhood is flat where it spreads this much less across than along: a face, not
-/// an edge, whose points are matched along the normal only. Loose enough for a scan or a
-/// first cloud with the camera's noise (1 mm across at 2 mm spacing spreads about 0.15 as
-/// much across as along).
-constexpr double kFlatness = 0.25;
-
-/// The rest shape's surface at each chosen point: the direction in which its nearest
-/// neighbours spread least, turned away from the shape's centre (outwards on a convex
-/// shape, which is what tells the camera's side from the hidden one), and whether the
-/// neighbourhood is flat enough for that to be a surface normal (not an edge or a corner).
-struct RestNormals {
-  std::vector<Eigen::Vector3d> outward;
-  std::vector<char> flat;
-};
-
-RestNormals restNormals(const std::vector<Eigen::Vector3d>& rest,
-                        const std::vector<std::uint32_t>& chosen) {
-  MatchingPoints all{rest};
-  MatchingTree tree(3, all, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  tree.buildIndex();
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (const auto& p : rest) centre += p;
-  centre /= static_cast<double>(rest.size());
-  RestNormals normals{std::vector<Eigen::Vector3d>(chosen.size(), Eigen::Vector3d::Zero()),
-                      std::vector<char>(chosen.size(), 0)};
-  std::uint32_t neighbours[kNormalNeighbours];
-  double squared[kNormalNeighbours];
-  for (std::size_t m = 0; m < chosen.size(); ++m) {
-    const Eigen::Vector3d& at = rest[chosen[m]];
-    const std::size_t found = tree.knnSearch(at.data(), kNormalNeighbours, neighbours, squared);
-    if (found < 3) continue;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < found; ++k) mean += rest[neighbours[k]];
-    mean /= static_cast<double>(found);
-    Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
-    for (std::size_t k = 0; k < found; ++k) {
-      const Eigen::Vector3d d = rest[neighbours[k]] - mean;
-      spread += d * d.transpose();
-    }
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(spread);
-    const Eigen::Vector3d normal = solver.eigenvectors().col(0);
-    normals.outward[m] = normal.dot(at - centre) < 0.0 ? Eigen::Vector3d(-normal) : normal;
-    normals.flat[m] = solver.eigenvalues()(0) < kFlatness * solver.eigenvalues()(1);
-  }
-  return normals;
-}
-
-/// A small rigid motion of the whole object: p -> rotation (p - center) + center + translation.
-struct RigidStep {
-  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d center = Eigen::Vector3d::Zero();
-  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
-  Eigen::Vector3d apply(const Eigen::Vector3d& p) const {
-    return rotation * (p - center) + center + translation;
-  }
-};
+/// A direction of the object's rigid motion whose information per match (rows [n; (a x n)
+/// / L], about the whole model's centre; about 1/3 where a view sees it fully) is below this
+/// is not seen: the motion a cloud's fits make in it is taken back in proportion, or the
+/// model drifts where nothing holds it (a round fruit turns as it is squeezed). Higher, a
+/// round object carried and turned lags its turn. Chosen on bench_registration_zoo.
+constexpr double kUnseenInformation = 0.005;
 
 using Features = Eigen::Matrix<double, 9, 1>;
 
@@ -177,6 +110,8 @@ struct CloudRegistration::Workspace {
   double shape_beta = 0.5;                       ///< The body's beta.
   std::vector<std::uint32_t> clusters_of_point;  ///< Per model point.
   std::vector<Eigen::Vector3d> positions;        ///< Of the matching points, this round.
+  std::vector<Eigen::Vector3d> start_positions;  ///< ... as the cloud's first round began.
+  detail::ViewInformation view;                  ///< Of the last round's matches.
   /// The matching points that may be seen (all, without a viewpoint): the tree's points.
   std::vector<Eigen::Vector3d> tree_positions;
   std::vector<std::uint32_t> tree_members;  ///< Matching point of each tree point.
@@ -184,7 +119,7 @@ struct CloudRegistration::Workspace {
   /// Surface normal of each matching point on the rest shape, turned with its first
   /// cluster: matches pull along it only, so the model slides freely along the surface it
   /// already lies on (point-to-plane ICP).
-  RestNormals rest_normals;
+  detail::RestNormals rest_normals;
   std::vector<Eigen::Vector3d> current_normals;  ///< This round's, outward.
 
   std::vector<Eigen::Vector3d> samples;        ///< The thinned finite cloud.
@@ -204,16 +139,20 @@ struct CloudRegistration::Workspace {
   /// Places the matching points by the clusters' fits and builds the tree over those that
   /// face `viewpoint` (all of them without one).
   void placeMatchingPoints(const std::optional<Eigen::Vector3d>& viewpoint);
+  /// Places the matching points and their normals by the clusters' fits.
+  void placePositions();
   /// Matches each sample to its nearest matching point within `max_distance_m`; the
   /// median distance.
   double matchSamples(double max_distance_m);
   /// Sums each matched point's targets and finds the object's rigid step; the matches.
-  std::size_t gatherTargets(double threshold, RigidStep& step);
+  std::size_t gatherTargets(double threshold, detail::RigidMotion& step);
   /// Refits every cluster: the matches' targets against the cluster's last transform moved
   /// by the rigid step, weighted by prior_weight per matching point.
-  void fitClusters(const RigidStep& step, double prior_weight);
+  void fitClusters(const detail::RigidMotion& step, double prior_weight);
   template <int K>
   void solveCluster(std::size_t k, const Eigen::Matrix3d& step_rotation);
+  /// Takes back the part of the cloud's net rigid motion that its matches do not see.
+  void holdUnseenMotion();
   /// Moves the body's points to the mean of their clusters' goals.
   void applyFits(ShapeMatchingBody& body);
   /// The last round's matches against the model where it ended: their distance to its
@@ -254,9 +193,10 @@ void CloudRegistration::Workspace::layOut(const ShapeMatchingBody& body,
     memberships.insert(memberships.end(), entries.begin(), entries.end());
     membership_offsets.push_back(static_cast<std::uint32_t>(memberships.size()));
   }
-  rest_normals = restNormals(rest, matching_points);
+  rest_normals = detail::restNormals(rest, matching_points);
   current_normals.resize(matching_points.size());
   positions.resize(matching_points.size());
+  start_positions.resize(matching_points.size());
   tree_positions.reserve(matching_points.size());
   tree_members.reserve(matching_points.size());
   target_sums.assign(matching_points.size(), Eigen::Vector3d::Zero());
@@ -293,10 +233,7 @@ void CloudRegistration::Workspace::sampleCloud(const std::vector<Eigen::Vector3d
   distance_of_sample.resize(samples.size());
 }
 
-void CloudRegistration::Workspace::placeMatchingPoints(
-    const std::optional<Eigen::Vector3d>& viewpoint) {
-  tree_positions.clear();
-  tree_members.clear();
+void CloudRegistration::Workspace::placePositions() {
   for (std::uint32_t m = 0; m < matching_points.size(); ++m) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (std::uint32_t e = membership_offsets[m]; e < membership_offsets[m + 1]; ++e) {
@@ -305,6 +242,28 @@ void CloudRegistration::Workspace::placeMatchingPoints(
     positions[m] = sum / static_cast<double>(membership_offsets[m + 1] - membership_offsets[m]);
     current_normals[m] =
         fits[memberships[membership_offsets[m]].cluster].rotation * rest_normals.outward[m];
+  }
+}
+
+void CloudRegistration::Workspace::holdUnseenMotion() {
+  placePositions();
+  const detail::RigidMotion unseen =
+      view.unseenPart(start_positions, positions, kUnseenInformation);
+  const Eigen::Matrix3d back = unseen.rotation.transpose();
+  const Eigen::Quaterniond back_turn(back);
+  for (ClusterFit& fit : fits) {
+    fit.transform = back * fit.transform;
+    fit.translation = back * (fit.translation - unseen.center - unseen.translation) + unseen.center;
+    fit.rotation = (back_turn * fit.rotation).normalized();
+  }
+}
+
+void CloudRegistration::Workspace::placeMatchingPoints(
+    const std::optional<Eigen::Vector3d>& viewpoint) {
+  placePositions();
+  tree_positions.clear();
+  tree_members.clear();
+  for (std::uint32_t m = 0; m < matching_points.size(); ++m) {
     // A point whose surface faces away from the camera cannot be what it sees, however
     // near: the far side of a thin object, the hidden face next to a seen edge. A point
     // on an edge would be pulled off it by the seen face's points on one side alone.
@@ -341,7 +300,8 @@ double CloudRegistration::Workspace::matchSamples(double max_distance_m) {
   return *middle;
 }
 
-std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidStep& step) {
+std::size_t CloudRegistration::Workspace::gatherTargets(double threshold,
+                                                        detail::RigidMotion& step) {
   std::size_t used = 0;
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
   for (std::size_t j = 0; j < samples.size(); ++j) {
@@ -354,6 +314,9 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidS
   }
   if (used == 0) return 0;
   center /= static_cast<double>(used);
+  Eigen::Vector3d object_center = Eigen::Vector3d::Zero();
+  for (const auto& p : positions) object_center += p / static_cast<double>(positions.size());
+  view.clear(object_center);
   // One Gauss-Newton step of point-to-plane ICP for the whole object (rotation w about
   // `center` and translation v, linearised): a match on a flat patch constrains only the
   // distance along its normal, so the model slides along the surface in one step instead
@@ -371,6 +334,7 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidS
     const std::uint32_t m = match_of_sample[j];
     const Eigen::Vector3d& normal = current_normals[m];
     addRow(positions[m] - center, normal, normal.dot(samples[j] - positions[m]));
+    view.add(positions[m] - object_center, normal);
   }
   // A share of the clusters' prior holds the step: a direction the matches constrain only
   // weakly (a face seen edge-on) moves about as far as they outweigh it, not as far as their
@@ -395,7 +359,8 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold, RigidS
   return used;
 }
 
-void CloudRegistration::Workspace::fitClusters(const RigidStep& step, double prior_weight) {
+void CloudRegistration::Workspace::fitClusters(const detail::RigidMotion& step,
+                                               double prior_weight) {
   // The prior: the cluster's shape-matching goal moved by the rigid step, y = B q~ + b,
   // summed in closed form from the cluster's feature sums. Pulling towards the goal rather
   // than the last fit keeps what the camera cannot tell (a slide along a smooth surface, a
@@ -555,11 +520,12 @@ RegistrationReport CloudRegistration::registerCloud(
   int rounds_done = 0;
   for (int round = 0; round < config_.iterations; ++round) {
     w.placeMatchingPoints(viewpoint_m);
+    if (round == 0) w.start_positions = w.positions;
     const double median = w.matchSamples(config_.max_correspondence_m);
     threshold = std::min(
         config_.max_correspondence_m,
         std::max(kMedianMultiple * median, kThresholdFloorRatio * config_.max_correspondence_m));
-    RigidStep step;
+    detail::RigidMotion step;
     const std::size_t used = w.gatherTargets(threshold, step);
     if (static_cast<double>(used) < needed) {
       // Not the object (another one, the table alone, nothing): leave the model be.
@@ -574,6 +540,7 @@ RegistrationReport CloudRegistration::registerCloud(
     report.held = true;
     report.rejected_points = w.samples.size();
   } else {
+    w.holdUnseenMotion();
     w.applyFits(body);
     w.placeMatchingPoints(viewpoint_m);
     w.measureResiduals(threshold, report);

@@ -67,7 +67,9 @@ struct RegistrationReport {
 /// (ShapeMatchingBody::track) on the matched model points' targets: every cluster is fitted
 /// on what the camera sees of it, and the points it does not see follow their cluster's
 /// fit, so the hidden side is completed by the model. A cluster the camera does not see at
-/// all moves with the object's rigid motion. The body's fit residuals, and so the sphere
+/// all moves with the object's rigid motion. What the cloud's fits turned or shifted the whole
+/// object in a direction its matches hardly see (a round object's roll) is taken back, so
+/// the model does not drift where nothing holds it. The body's fit residuals, and so the sphere
 /// hierarchy's bounds, come from track() as for any registration.
 class CloudRegistration {
  public:
