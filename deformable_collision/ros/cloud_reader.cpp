@@ -100,7 +100,9 @@ bool CloudReader::tfFilling() const {
   const double fill_s = std::max(config_.tf_wait_s, kTfFillMinimumS);
   if (std::chrono::duration<double>(Clock::now() - started_).count() < fill_s) return true;
   std::lock_guard<std::mutex> lock(time_mutex_);
-  return (ros::Time::now() - fill_started_ros_).toSec() < fill_s;
+  // Not started when last seen (sim time before the first /clock): the clock may have
+  // started since, but tf cannot have filled.
+  return fill_started_ros_.isZero() || (ros::Time::now() - fill_started_ros_).toSec() < fill_s;
 }
 
 bool CloudReader::tfFromBeforeJump(const std::string& target_frame,

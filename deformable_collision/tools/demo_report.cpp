@@ -347,7 +347,7 @@ void printReport(StatsRecord& record, double duration_s) {
   const double busy_s = last.reader_busy_s - record.before_figures.reader_busy_s;
   const double span_s = (record.last_time - record.before_figures_time).toSec();
   if (span_s > 0.0) {
-    std::printf("reader thread busy %.1f%% of the time (%.3f s in %.1f s)\n",
+    std::printf("reader threads busy %.1f%% of one core (%.3f s in %.1f s)\n",
                 100.0 * busy_s / span_s, busy_s, span_s);
   }
 }
