@@ -178,7 +178,7 @@ WayFigures onTheReader(Scene& scene, const std::vector<ObjectClouds>& objects, i
     const auto start = Clock::now();
     for (std::size_t k = 0; k < objects.size(); ++k) {
       if (!reports[k].held)
-        scene.observeRegistered(k + 1, read[k], fits[k], reports[k].mean_residual_m);
+        scene.observeRegistered(k + 1, read[k], fits[k], reports[k].surface_error);
     }
     const double taken_ms = millisecondsSince(start);
     scene.cycle();

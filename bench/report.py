@@ -570,6 +570,21 @@ def zoo_targets(rows):
         ("registration <= 3 ms per cloud", count(lambda r: float(r["ms_per_cloud"]) <= 3))])
 
 
+def zoo_estimates(rows):
+    """The registration's estimate of its surface error (SurfaceError) against the truth."""
+    def covered(side):
+        return sum(1 for r in rows
+                   if float(r[f"estimate_{side}_mm"]) >= float(r[f"rested_{side}_off_mm"]))
+    text = ("The registration's own estimate of its error (`SurfaceError`, in `~stats` and on "
+            "contacts) against the model's mean distance from the true surface after the rest, "
+            f"mm, seen / hidden. Covered: {covered('seen')} of {len(rows)} seen, "
+            f"{covered('hidden')} of {len(rows)} hidden.\n\n")
+    return text + table(["shape", "deformation", "surface error", "estimate"],
+                        [(r["shape"], r["deformation"],
+                          zoo_pair(r, "rested_seen_off_mm", "rested_hidden_off_mm"),
+                          zoo_pair(r, "estimate_seen_mm", "estimate_hidden_mm")) for r in rows])
+
+
 def zoo_report(results, rows):
     """registration_zoo.md, one row per shape and deformation, and its plot."""
     text = "# Registration over the zoo\n\n"
@@ -595,6 +610,7 @@ def zoo_report(results, rows):
                     zoo_pair(r.get("seen_limit"), "rested_seen_mm", "rested_hidden_mm"),
                     f"{r['ms_per_cloud']} ({r['worst_ms']})") for r in rows])
     text += "\n" + zoo_targets(rows)
+    text += "\n" + zoo_estimates(rows)
     write(results, "registration_zoo.md", text)
     zoo_plot(results, rows)
 

@@ -40,7 +40,7 @@ void CloudHandoff::keepOlderFit(ReadCloud& newer, ReadCloud& older) {
   std::swap(newer.points, older.points);
   std::swap(newer.fit, older.fit);
   newer.fitted = true;
-  newer.fit_residual_m = older.fit_residual_m;
+  newer.fit_error = older.fit_error;
 }
 
 bool CloudHandoff::ready(bool all) const {

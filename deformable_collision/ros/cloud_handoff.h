@@ -34,7 +34,7 @@ struct ReadCloud {
   /// on_cloud register: the reader's registration of the cloud (RegistrationFitter). Not
   /// held, it is the fit in `fit` and `points`; held, `fit` may hold a fit it replaced.
   std::optional<RegistrationReport> registration;
-  double fit_residual_m = 0.0;  ///< The mean residual of the registration that made `fit`.
+  SurfaceError fit_error;  ///< The estimated error of the registration that made `fit`.
 };
 
 /// The newest read cloud of each object, passed from the thread that reads clouds to the

@@ -420,7 +420,7 @@ void CloudReader::registerCloud(ObjectSlot& slot, ObjectReader& reader, ReadClou
     reader.registration->setPointsNearObject(reader.near_points);
   read.registration = reader.registration->fit(read.points, read.viewpoint, read.fit);
   read.fitted = !read.registration->held;
-  read.fit_residual_m = read.registration->mean_residual_m;
+  read.fit_error = read.registration->surface_error;
 }
 
 CloudReader::TransformOutcome CloudReader::transformPoints(const ObjectSlot& slot,

@@ -249,6 +249,7 @@ void fillContactArray(const Scene& scene, const std::vector<SceneContact>& conta
     to.error_bound_m = from.contact.error_bound_m;
     to.force_n = toVectorMessage(from.force_n);
     to.force_error_n = from.force_error_n;
+    to.registration_error_m = from.registration_error_m;
   }
 }
 

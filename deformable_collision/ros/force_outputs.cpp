@@ -49,6 +49,7 @@ void fillContactSummaryArray(const Scene& scene, const std::vector<PairSummary>&
     to.force_n = toVectorMessage(from.force_n);
     to.force_error_n = from.force_error_n;
     to.area_m2 = from.area_m2;
+    to.registration_error_m = from.registration_error_m;
   }
 }
 

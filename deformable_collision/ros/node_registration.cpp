@@ -86,8 +86,7 @@ void DeformableCollisionNode::takeRegistration(ObjectSlot& slot, ReadCloud& clou
   if (!cloud.registration) return;
   slot.registration = *cloud.registration;
   if (slot.registration.held) reportHeld(slot);
-  if (cloud.fitted)
-    scene_.observeRegistered(*slot.index, cloud.points, cloud.fit, cloud.fit_residual_m);
+  if (cloud.fitted) scene_.observeRegistered(*slot.index, cloud.points, cloud.fit, cloud.fit_error);
 }
 
 void DeformableCollisionNode::shareNearPoints() {
@@ -130,6 +129,9 @@ void DeformableCollisionNode::fillRegistrationStats(Stats& stats) const {
     out.excluded_points = static_cast<std::uint32_t>(report.excluded_points);
     out.mean_residual_m = report.mean_residual_m;
     out.max_residual_m = report.max_residual_m;
+    const SurfaceError error = slot.index ? scene_.registrationError(*slot.index) : SurfaceError{};
+    out.seen_error_m = error.seen_m;
+    out.hidden_error_m = error.hidden_m;
     out.time_ms = report.time_ms;
     out.clouds_held = slot.clouds_held;
   }

@@ -381,13 +381,15 @@ TEST(SceneRegistration, TrackedObjectsOnly) {
 
 // The hidden side is completed by the model: after the object moved, seen from one side
 // only, a probe touching the face the camera never sees is found at the finest level where
-// it touches, and one a contact distance farther off is not.
+// it touches, and one a contact distance farther off is not. Its contacts carry the hidden
+// side's estimated error, a probe's on the seen top face the seen side's.
 TEST(SceneRegistration, FindsContactsOnTheHiddenSide) {
   SceneConfig config;
   config.contact_distance_m = 0.004;
   Scene scene(config);
   ObjectConfig sponge{"sponge", ObjectKind::kTracked, {}};
   sponge.shape.mode = DeformationMode::kRigid;
+  sponge.shape.clusters = 4;  // Whose fits disagree on the hidden side.
   const std::size_t sponge_index = scene.addObject(sponge, boxSurface(4000, 21).points);
   constexpr int kClouds = 20;
   const Eigen::Vector3d camera = 0.5 * kOneSide.normalized();
@@ -399,36 +401,44 @@ TEST(SceneRegistration, FindsContactsOnTheHiddenSide) {
                                     camera)
                      .held);
   }
-  // Probes under the bottom face (-z, which the camera never sees), where it truly is.
-  const auto probeAt = [&](double gap_m) {
+  // Probes under the bottom face (-z, which the camera never sees), or over the top face,
+  // where it truly is.
+  const auto probeAt = [&](double gap_m, double side) {
     Points probe;
     for (double x = -0.01; x <= 0.01; x += 0.002) {
       for (double y = -0.01; y <= 0.01; y += 0.002) {
-        probe.push_back(rigidMotion(Eigen::Vector3d(x, y, -kHalfExtents.z() - gap_m), 1.0));
+        probe.push_back(rigidMotion(Eigen::Vector3d(x, y, side * (kHalfExtents.z() + gap_m)), 1.0));
       }
     }
     return probe;
   };
   const Eigen::Vector3d touch_point =
       rigidMotion(Eigen::Vector3d(0.0, 0.0, -kHalfExtents.z()), 1.0);
-  ObjectConfig touching{"touching_probe", ObjectKind::kKinematic, {}};
-  ObjectConfig apart{"probe_apart", ObjectKind::kKinematic, {}};
-  const std::size_t touching_index = scene.addObject(touching, probeAt(0.001));
+  const std::size_t touching_index =
+      scene.addObject({"touching_probe", ObjectKind::kKinematic, {}}, probeAt(0.001, -1.0));
   const std::size_t apart_index =
-      scene.addObject(apart, probeAt(0.001 + 2 * config.contact_distance_m));
-  scene.setPose(touching_index, Eigen::Isometry3d::Identity());
-  scene.setPose(apart_index, Eigen::Isometry3d::Identity());
+      scene.addObject({"probe_apart", ObjectKind::kKinematic, {}},
+                      probeAt(0.001 + 2 * config.contact_distance_m, -1.0));
+  const std::size_t top_index =
+      scene.addObject({"top_probe", ObjectKind::kKinematic, {}}, probeAt(0.001, 1.0));
+  for (const std::size_t probe : {touching_index, apart_index, top_index})
+    scene.setPose(probe, Eigen::Isometry3d::Identity());
   std::vector<SceneContact> contacts;
   scene.contactsAt(scene.maxLevel(), sponge_index, std::nullopt, contacts);
-  std::size_t with_touching = 0;
+  const SurfaceError& error = scene.registrationError(sponge_index);
+  EXPECT_LT(error.seen_m, error.hidden_m);
+  std::size_t with_touching = 0, with_top = 0;
   for (const SceneContact& c : contacts) {
     const std::size_t other = c.object_a == sponge_index ? c.object_b : c.object_a;
     EXPECT_NE(other, apart_index) << "a probe 9 mm below the hidden face touches it";
+    with_top += other == top_index;
+    EXPECT_EQ(c.registration_error_m, other == top_index ? error.seen_m : error.hidden_m);
     if (other != touching_index) continue;
     ++with_touching;
     EXPECT_LT((c.contact.position - touch_point).norm(), 0.016) << "contact far from the probe";
   }
   EXPECT_GT(with_touching, 0u) << "the probe touching the hidden face is not found";
+  EXPECT_GT(with_top, 0u);
 }
 
 // A model taken from a camera's first cloud is as noisy as the camera: it still registers.

@@ -110,7 +110,7 @@ TEST_P(RegistrationFitterTest, GivesTheStatesRegisterCloudGives) {
     if (report.held) {
       EXPECT_EQ(read, points) << "a held cloud is left as it came";
     } else {
-      fitted->observeRegistered(1, read, fit, report.mean_residual_m);
+      fitted->observeRegistered(1, read, fit, report.surface_error);
     }
     excluded += report.excluded_points;
     held += report.held ? 1 : 0;
@@ -224,7 +224,7 @@ TEST(RegistrationFitter, AbsurdCloudsGiveTheStatesRegisterCloudGives) {
     read = clouds[k];
     const RegistrationReport report = fitter.fit(read, std::nullopt, fit);
     expectSameReport(report, expected);
-    if (!report.held) fitted->observeRegistered(1, read, fit, report.mean_residual_m);
+    if (!report.held) fitted->observeRegistered(1, read, fit, report.surface_error);
     ASSERT_EQ(fitted->body(1).positions(), registered->body(1).positions());
     for (const auto& p : fitted->body(1).positions()) ASSERT_TRUE(p.allFinite());
     fitted->cycle();
@@ -247,12 +247,11 @@ TEST(Scene, RegisteredFitsAreTakenOnlyByTheRestShapeTheyFit) {
   const RegistrationReport report = fitter.fit(read, std::nullopt, fit);
   ASSERT_FALSE(report.held);
   const Points before = scene->body(second).positions();
-  EXPECT_THROW(scene->observeRegistered(second, read, fit, report.mean_residual_m),
+  EXPECT_THROW(scene->observeRegistered(second, read, fit, report.surface_error),
                std::invalid_argument);
   EXPECT_EQ(scene->body(second).positions(), before);
-  EXPECT_THROW(scene->observeRegistered(0, read, fit, report.mean_residual_m),
-               std::invalid_argument);
-  scene->observeRegistered(1, read, fit, report.mean_residual_m);
+  EXPECT_THROW(scene->observeRegistered(0, read, fit, report.surface_error), std::invalid_argument);
+  scene->observeRegistered(1, read, fit, report.surface_error);
 }
 
 }  // namespace

@@ -372,7 +372,7 @@ TEST(Scene, SteadyStateRegistrationFitsAllocateNothing) {
     if (report.held) {
       ++held_clouds;
     } else {
-      scene.observeRegistered(object, read, fit, report.mean_residual_m);
+      scene.observeRegistered(object, read, fit, report.surface_error);
     }
     excluded += report.excluded_points;
     scene.cycle();

@@ -345,13 +345,13 @@ TEST(CloudHandoff, AReplacedCloudPassesItsPreparedObjectToANewerOneWithout) {
   EXPECT_EQ(reset_second.prepared.trackedFitter().pointCount(), 60u);
 }
 
-/// A registered cloud numbered `sequence`: held, or a fit of that residual.
-ReadCloud registered(double sequence, bool held, double residual_m = 0.0) {
+/// A registered cloud numbered `sequence`: held, or a fit of that hidden side's error.
+ReadCloud registered(double sequence, bool held, double hidden_error_m = 0.0) {
   ReadCloud cloud = numbered(4, sequence);
   cloud.registration.emplace();
   cloud.registration->held = held;
   cloud.fitted = !held;
-  cloud.fit_residual_m = residual_m;
+  cloud.fit_error.hidden_m = hidden_error_m;
   return cloud;
 }
 
@@ -370,7 +370,7 @@ TEST(CloudHandoff, AHeldRegistrationKeepsTheFitItReplaced) {
   EXPECT_TRUE(taken[0].registration->held);
   EXPECT_TRUE(taken[0].fitted);
   EXPECT_EQ(taken[0].points[0].x(), 1.0) << "the older cloud's fitted points";
-  EXPECT_EQ(taken[0].fit_residual_m, 0.002);
+  EXPECT_EQ(taken[0].fit_error.hidden_m, 0.002);
 
   ReadCloud first = registered(3.0, false, 0.001);
   handoff.put(0, first);
@@ -378,7 +378,7 @@ TEST(CloudHandoff, AHeldRegistrationKeepsTheFitItReplaced) {
   handoff.put(0, second);
   handoff.takeForCycle(taken, objects);
   EXPECT_EQ(taken[0].points[0].x(), 4.0);
-  EXPECT_EQ(taken[0].fit_residual_m, 0.003);
+  EXPECT_EQ(taken[0].fit_error.hidden_m, 0.003);
   EXPECT_FALSE(taken[0].registration->held);
 }
 

@@ -198,6 +198,7 @@ TEST_F(ContactServiceTest, GetContactsAtANamedLevelAnswersAtThatLevel) {
       EXPECT_EQ(contact.force_n.y, core[k].force_n.y());
       EXPECT_EQ(contact.force_n.z, core[k].force_n.z());
       EXPECT_EQ(contact.force_error_n, core[k].force_error_n);
+      EXPECT_EQ(contact.registration_error_m, core[k].registration_error_m);
       if (core[k].contact.point_a != SphereContact::kNoPoint) {
         EXPECT_EQ(contact.error_bound_m, 0.0);
       } else {

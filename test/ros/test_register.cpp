@@ -357,6 +357,10 @@ TEST_F(RegisterTest, FollowsTheBoxFromAMovingCameraAndHoldsOnCloudsWithoutIt) {
               registration().cloud_points);
     EXPECT_GE(registration().max_residual_m, registration().mean_residual_m);
     EXPECT_LT(registration().mean_residual_m, 0.003);
+    // The estimate: the RMS residual on the seen side, more on the hidden side.
+    EXPECT_GE(registration().seen_error_m, registration().mean_residual_m);
+    EXPECT_GE(registration().hidden_error_m, registration().seen_error_m);
+    EXPECT_LT(registration().hidden_error_m, 0.01);
     EXPECT_EQ(registration().clouds_held, 0u);
     registrations_ms += registration().time_ms;
   }

@@ -7,6 +7,7 @@
 #include <optional>
 #include <vector>
 
+#include "deformable_collision/core/registration/surface_error.h"
 #include "deformable_collision/core/shape_matching/shape_matching.h"
 
 namespace deformable_collision {
@@ -54,6 +55,7 @@ struct RegistrationReport {
   std::size_t excluded_points = 0;
   double mean_residual_m = 0.0;  ///< Over the used points, from the final model.
   double max_residual_m = 0.0;   ///< Over the used points, from the final model.
+  SurfaceError surface_error;    ///< The final model's estimated error, seen and hidden.
   double time_ms = 0.0;          ///< Steady-clock time of the whole registration.
 };
 
@@ -85,7 +87,8 @@ class CloudRegistration {
   /// far side of a thin object and the hidden faces next to a seen edge stay out. A cloud with too
   /// few matches (none, all NaN, another object's, far away) leaves the body unchanged and says so
   /// in `held`. Steady state (the same body, clouds no larger than before) allocates nothing.
-  /// `filter`, if given, leaves out the thinned cloud points it excludes.
+  /// `filter`, if given, leaves out the thinned cloud points it excludes. The report estimates
+  /// the final model's surface error on the side the camera sees and on the other.
   RegistrationReport registerCloud(ShapeMatchingBody& body,
                                    const std::vector<Eigen::Vector3d>& cloud_m,
                                    const std::optional<Eigen::Vector3d>& viewpoint_m = std::nullopt,

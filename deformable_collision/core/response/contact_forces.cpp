@@ -49,6 +49,7 @@ Eigen::Vector3d ContactForces::lastCycleForce(std::uint32_t object_a,
 
 void ContactForces::assignRun(std::vector<SceneContact>& contacts, const ContactRun& run,
                               const Eigen::Vector3d& dynamic_force_n) {
+  assignRegistrationErrors(contacts, run);
   if (!objects_[run.object_a]->dynamic() && !objects_[run.object_b]->dynamic()) {
     assignStiffnessRun(contacts, run);
     return;
@@ -64,7 +65,6 @@ void ContactForces::assignStiffnessRun(std::vector<SceneContact>& contacts, cons
   const Object& a = *objects_[run.object_a];
   const Object& b = *objects_[run.object_b];
   const double magnitude = stiffnessForce(contacts, run);
-  const double residual = std::max(a.registration_residual_m, b.registration_residual_m);
   const double stiffness =
       std::max(a.config.contact_stiffness_n_per_m, b.config.contact_stiffness_n_per_m);
   double bound = 0.0;
@@ -78,7 +78,7 @@ void ContactForces::assignStiffnessRun(std::vector<SceneContact>& contacts, cons
   const double length = normal.norm();
   const Eigen::Vector3d force =
       length > 0.0 ? Eigen::Vector3d(magnitude / length * normal) : Eigen::Vector3d::Zero();
-  share(contacts, run, force, stiffness * (bound + residual));
+  share(contacts, run, force, stiffness * (bound + contacts[run.begin].registration_error_m));
 }
 
 // One stiffness per pair: a probe pressed a given depth into the object reads the same force
@@ -141,6 +141,23 @@ void ContactForces::share(std::vector<SceneContact>& contacts, const ContactRun&
     const double split = contact.contact.error_bound_m > 0.0 ? std::max(w, 1.0 - w) : 0.0;
     contact.force_error_n = split * magnitude_n + contact.indentation_error_n;
   }
+}
+
+// A pair's contacts share one side of each camera, told at their mean place along their
+// depth-weighted mean normal (from b to a: each object's surface there faces the other): the
+// normals of single point pairs scatter across a flat face, and may lie along it.
+void ContactForces::assignRegistrationErrors(std::vector<SceneContact>& contacts,
+                                             const ContactRun& run) const {
+  if (run.begin == run.end) return;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
+  for (std::size_t k = run.begin; k < run.end; ++k) {
+    position += contacts[k].contact.position;
+    normal += contacts[k].contact.depth_m * contacts[k].contact.normal;
+  }
+  position /= static_cast<double>(run.end - run.begin);
+  const double error = std::max(objects_[run.object_a]->registration_error.at(position, -normal),
+                                objects_[run.object_b]->registration_error.at(position, normal));
+  for (std::size_t k = run.begin; k < run.end; ++k) contacts[k].registration_error_m = error;
 }
 
 }  // namespace deformable_collision

@@ -43,6 +43,7 @@ PairSummary summarizePair(const std::vector<SceneContact>& contacts, std::size_t
     summary.largest_depth_m = std::max(summary.largest_depth_m, c.contact.depth_m);
     summary.force_n += c.force_n;
     summary.force_error_n += c.indentation_error_n;
+    summary.registration_error_m = std::max(summary.registration_error_m, c.registration_error_m);
   }
   summary.centroid_m /= static_cast<double>(summary.contacts);
   const double length = normal_sum.norm();

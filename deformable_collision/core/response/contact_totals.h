@@ -27,6 +27,7 @@ struct PairSummary {
   /// twice each standard deviation (a disc or an ellipse of contacts gives its own area, a
   /// square 5% more). 0 for a single contact; the finest level's is the truest.
   double area_m2 = 0.0;
+  double registration_error_m = 0.0;  ///< The largest of the contacts'.
 };
 
 /// One summary per object pair, in the order the pairs come in `contacts` (each pair's

@@ -30,7 +30,7 @@ RegistrationReport Scene::registerCloud(std::size_t object,
   const RegistrationReport report =
       o.registration->registerCloud(o.body, cloud_m, viewpoint_m, &o.near_points);
   if (!report.held) {
-    o.registration_residual_m = report.mean_residual_m;
+    o.registration_error = report.surface_error;
     o.stale = true;
     ++stats_.objects_moved;
   }
@@ -44,9 +44,13 @@ RegistrationFitter Scene::registrationFitter(std::size_t object) const {
 }
 
 void Scene::observeRegistered(std::size_t object, std::vector<Eigen::Vector3d>& points_m,
-                              const TrackedFit& fit, double mean_residual_m) {
+                              const TrackedFit& fit, const SurfaceError& error) {
   observeFitted(object, points_m, fit);
-  objects_[object]->registration_residual_m = mean_residual_m;
+  objects_[object]->registration_error = error;
+}
+
+const SurfaceError& Scene::registrationError(std::size_t object) const {
+  return objects_.at(object)->registration_error;
 }
 
 void Scene::pointsNearObject(std::size_t object, std::vector<Eigen::Vector3d>& points_m) {

@@ -109,6 +109,10 @@ struct SceneContact {
   /// The part of force_error_n that the indentation's error makes (0 in a dynamic pair):
   /// summed over a pair, how far its total can be from the finest level's.
   double indentation_error_n = 0.0;
+  /// How far the contact may be off the real objects' for their registrations' errors (m,
+  /// >= 0): the larger of the two objects' SurfaceError, each on the side of its camera
+  /// that the pair's contacts face; 0 between objects never registered (ContactForces).
+  double registration_error_m = 0.0;
 };
 
 /// Per-cycle timings (steady clock) and counts.
@@ -248,11 +252,14 @@ class Scene {
   RegistrationFitter registrationFitter(std::size_t object) const;
 
   /// Takes over a cloud registered by a fitter of the object (RegistrationFitter::fit, not
-  /// held), as observeFitted() takes a tracked fit, with that registration's mean residual
-  /// (what bounds the contact forces' indentations, as after registerCloud()).
+  /// held), as observeFitted() takes a tracked fit, with that registration's estimate of
+  /// the model's error (SceneContact::registration_error_m, as after registerCloud()).
   /// @throw as observeFitted(); nothing changes then.
   void observeRegistered(std::size_t object, std::vector<Eigen::Vector3d>& points_m,
-                         const TrackedFit& fit, double mean_residual_m);
+                         const TrackedFit& fit, const SurfaceError& error);
+  /// The estimated error of `object`'s model from the last cloud registered to it (zero if
+  /// none was). @throw std::out_of_range for a bad index.
+  const SurfaceError& registrationError(std::size_t object) const;
 
   /// Into `points_m` (its capacity reused): the points of the objects other than `object`
   /// that registerCloud() leaves out of its clouds when they are closer than the contact

@@ -59,8 +59,9 @@ struct SceneObject {
   std::optional<CloudRegistration> registration;
   /// What its registration leaves out: the others' points near it (Scene::pointsNearObject).
   NearPointsFilter near_points;
-  /// The last registered cloud's mean residual: how far its indentations may be off.
-  double registration_residual_m = 0.0;
+  /// The last registered cloud's estimate of the model's error: how far its contacts and
+  /// indentations may be off the real object's (zero for an object never registered).
+  SurfaceError registration_error;
 
   /// Dynamic objects: their centre of mass before this cycle's step, where a new contact's
   /// side is seen from (a long step may carry the centre past a thin floor). Taken from the
