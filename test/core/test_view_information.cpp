@@ -92,6 +92,23 @@ struct Case {
 
 // A ball's turn about its centre leaves its surface where it was: no view sees it, and it is
 // all taken for unseen; its shift, and every motion of a box seen on three faces, are seen.
+/// The information of the first `count` seen points of `view` about the origin, given as a
+/// point-to-plane step sums its rows: about `rows_center`, the turn first.
+ViewInformation informationOf(const View& view, std::size_t count,
+                              const Eigen::Vector3d& rows_center) {
+  ViewInformation::Matrix6d moment = ViewInformation::Matrix6d::Zero();
+  for (std::size_t i = 0; i < count; ++i) {
+    Eigen::Matrix<double, 6, 1> row;
+    row << (view.seen[i] - rows_center).cross(view.normals[i]), view.normals[i];
+    moment += row * row.transpose();
+  }
+  ViewInformation information;
+  information.set(Eigen::Vector3d::Zero(), rows_center, moment, count);
+  return information;
+}
+
+// Whatever point the step's rows are taken about, the information is about the shape's
+// centre: the same unseen part.
 TEST(ViewInformation, TakesForUnseenWhatTheMatchesCannotSee) {
   const std::vector<Case> cases = {
       {"ball turned about z", ball(), turn({0, 0, 1}, 0.02), true},
@@ -101,27 +118,25 @@ TEST(ViewInformation, TakesForUnseenWhatTheMatchesCannotSee) {
       {"box shifted", box(), shift({0.002, 0.001, -0.001}), false},
   };
   for (const Case& c : cases) {
-    ViewInformation information;
-    information.clear(Eigen::Vector3d::Zero());
-    for (std::size_t i = 0; i < c.view.seen.size(); ++i) {
-      information.add(c.view.seen[i], c.view.normals[i]);
+    for (const Eigen::Vector3d& rows_center :
+         {Eigen::Vector3d::Zero().eval(), Eigen::Vector3d(0.03, -0.02, 0.01)}) {
+      const ViewInformation information = informationOf(c.view, c.view.seen.size(), rows_center);
+      const RigidMotion unseen =
+          information.unseenPart(c.view.points, moved(c.view.points, c.motion), 0.005);
+      const RigidMotion expected = c.unseen ? c.motion : RigidMotion();
+      EXPECT_TRUE(unseen.rotation.isApprox(expected.rotation, 1e-6)) << c.name;
+      EXPECT_LT((unseen.translation - expected.translation).norm(), 1e-6) << c.name;
     }
-    const RigidMotion unseen =
-        information.unseenPart(c.view.points, moved(c.view.points, c.motion), 0.005);
-    const RigidMotion expected = c.unseen ? c.motion : RigidMotion();
-    EXPECT_TRUE(unseen.rotation.isApprox(expected.rotation, 1e-6)) << c.name;
-    EXPECT_LT((unseen.translation - expected.translation).norm(), 1e-6) << c.name;
   }
 }
 
 TEST(ViewInformation, WithoutMatchesOrPointsNothingIsUnseen) {
-  ViewInformation information;
-  information.clear(Eigen::Vector3d::Zero());
   const View view = ball();
   const Points turned = moved(view.points, turn({0, 0, 1}, 0.1));
-  RigidMotion unseen = information.unseenPart(view.points, turned, 0.005);
+  RigidMotion unseen =
+      informationOf(view, 0, Eigen::Vector3d::Zero()).unseenPart(view.points, turned, 0.005);
   EXPECT_TRUE(unseen.rotation.isIdentity()) << "no matches";
-  information.add(view.seen[0], view.normals[0]);
+  const ViewInformation information = informationOf(view, 1, Eigen::Vector3d::Zero());
   unseen = information.unseenPart({}, {}, 0.005);
   EXPECT_TRUE(unseen.rotation.isIdentity() && unseen.translation.isZero()) << "no points";
   const Points same(3, Eigen::Vector3d(0.1, 0.2, 0.3));

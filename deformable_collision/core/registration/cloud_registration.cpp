@@ -324,7 +324,6 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold,
   center /= static_cast<double>(used);
   Eigen::Vector3d object_center = Eigen::Vector3d::Zero();
   for (const auto& p : positions) object_center += p / static_cast<double>(positions.size());
-  view.clear(object_center);
   // One Gauss-Newton step of point-to-plane ICP for the whole object (rotation w about
   // `center` and translation v, linearised): a match on a flat patch constrains only the
   // distance along its normal, so the model slides along the surface in one step instead
@@ -342,8 +341,8 @@ std::size_t CloudRegistration::Workspace::gatherTargets(double threshold,
     const std::uint32_t m = match_of_sample[j];
     const Eigen::Vector3d& normal = current_normals[m];
     addRow(positions[m] - center, normal, normal.dot(samples[j] - positions[m]));
-    view.add(positions[m] - object_center, normal);
   }
+  view.set(object_center, center, normal_matrix, used);
   // A share of the clusters' prior holds the step: a direction the matches constrain only
   // weakly (a face seen edge-on) moves about as far as they outweigh it, not as far as their
   // noise says, while a well-seen motion is followed within a round or two.

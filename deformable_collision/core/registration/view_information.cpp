@@ -11,7 +11,6 @@ namespace detail {
 namespace {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
 /// The rigid motion p -> rotation (p - centre of from) + centre of to that takes `from`
 /// nearest to `to`, as its rotation and the two centres; the RMS radius of `to`.
@@ -44,17 +43,18 @@ NetMotion netMotion(const std::vector<Eigen::Vector3d>& from,
 
 }  // namespace
 
-void ViewInformation::clear(const Eigen::Vector3d& center) {
+// With d = rows_center - center, a match's row about the centre is [n; a x n + d x n]: the
+// given row [a x n; n] reordered, its turn part gaining d x n.
+void ViewInformation::set(const Eigen::Vector3d& center, const Eigen::Vector3d& rows_center,
+                          const Matrix6d& moment, std::size_t count) {
+  const Eigen::Vector3d d = rows_center - center;
+  Matrix6d map = Matrix6d::Zero();
+  map.topRightCorner<3, 3>().setIdentity();
+  map.bottomLeftCorner<3, 3>().setIdentity();
+  map.bottomRightCorner<3, 3>() << 0.0, -d.z(), d.y(), d.z(), 0.0, -d.x(), -d.y(), d.x(), 0.0;
   center_ = center;
-  moment_.setZero();
-  count_ = 0;
-}
-
-void ViewInformation::add(const Eigen::Vector3d& arm, const Eigen::Vector3d& normal) {
-  Vector6d row;
-  row << normal, arm.cross(normal);
-  moment_.noalias() += row * row.transpose();
-  ++count_;
+  moment_ = map * moment * map.transpose();
+  count_ = count;
 }
 
 RigidMotion ViewInformation::unseenPart(const std::vector<Eigen::Vector3d>& from,

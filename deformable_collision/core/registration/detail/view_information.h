@@ -25,8 +25,13 @@ struct RigidMotion {
 /// in its plane.
 class ViewInformation {
  public:
-  void clear(const Eigen::Vector3d& center);
-  void add(const Eigen::Vector3d& arm, const Eigen::Vector3d& normal);
+  using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+  /// The information of `count` matches about `center`, from the sum of their rows' outer
+  /// products as a point-to-plane step sums them: rows [(p - rows_center) x n; n], the turn
+  /// first. O(1): the rows about another point are a fixed linear map of these.
+  void set(const Eigen::Vector3d& center, const Eigen::Vector3d& rows_center,
+           const Matrix6d& moment, std::size_t count);
 
   /// The net rigid motion that takes `from` onto `to` (the same points, least squares),
   /// about the centre, and the part of it in the directions the matches leave unseen: each
@@ -38,7 +43,7 @@ class ViewInformation {
  private:
   Eigen::Vector3d center_ = Eigen::Vector3d::Zero();
   /// Sum of the rows [n; a x n] times their transposes; scaled by L when used.
-  Eigen::Matrix<double, 6, 6> moment_ = Eigen::Matrix<double, 6, 6>::Zero();
+  Matrix6d moment_ = Matrix6d::Zero();
   std::size_t count_ = 0;
 };
 
