@@ -11,6 +11,8 @@ void NearestPointIndex::build(const std::vector<Eigen::Vector3d>& points) {
   split_axis_.resize(points.size());
   for (std::uint32_t i = 0; i < order_.size(); ++i) order_[i] = i;
   split(0, static_cast<std::uint32_t>(order_.size()));
+  ordered_.resize(points.size());
+  for (std::uint32_t s = 0; s < order_.size(); ++s) ordered_[s] = points[order_[s]];
 }
 
 // The widest coordinate of the range is split at its median: the ranges halve, and the
@@ -53,16 +55,15 @@ bool NearestPointIndex::nearestWithin(const Eigen::Vector3d& query, double below
 
 void NearestPointIndex::search(std::uint32_t begin, std::uint32_t end, const Eigen::Vector3d& query,
                                Nearest& best) const {
-  const std::vector<Eigen::Vector3d>& points = *points_;
   if (end - begin <= kLeafSize) {
     for (std::uint32_t s = begin; s < end; ++s) {
-      const double squared = (points[order_[s]] - query).squaredNorm();
+      const double squared = (ordered_[s] - query).squaredNorm();
       if (squared < best.squared_distance_m2) best = {order_[s], squared};
     }
     return;
   }
   const std::uint32_t mid = begin + (end - begin) / 2;
-  const Eigen::Vector3d& median = points[order_[mid]];
+  const Eigen::Vector3d& median = ordered_[mid];
   const double squared = (median - query).squaredNorm();
   if (squared < best.squared_distance_m2) best = {order_[mid], squared};
   const int axis = split_axis_[mid];

@@ -41,6 +41,8 @@ class NearestPointIndex {
 
   const std::vector<Eigen::Vector3d>* points_ = nullptr;
   std::vector<std::uint32_t> order_;  ///< Point indices; each range's median splits it.
+  /// The points in that order: a search reads them in sequence.
+  std::vector<Eigen::Vector3d> ordered_;
   /// Of a range split at `mid`: the coordinate it was split on, stored at `mid`.
   std::vector<std::uint8_t> split_axis_;
 };
