@@ -16,12 +16,18 @@
 
 #include "deformable_collision/core/common/linear_algebra.h"
 #include "deformable_collision/core/common/nearest_point_index.h"
+#include "deformable_collision/core/registration/detail/cluster_fit.h"
 #include "deformable_collision/core/registration/detail/rest_normals.h"
 #include "deformable_collision/core/registration/detail/spread_points.h"
 #include "deformable_collision/core/registration/detail/view_information.h"
 
 namespace deformable_collision {
 namespace {
+
+using detail::ClusterFit;
+using detail::Features;
+using detail::FitSums;
+using detail::Membership;
 
 using Clock = std::chrono::steady_clock;
 
@@ -58,42 +64,6 @@ constexpr double kRigidTurnPriorShare = 1.0;
 /// model drifts where nothing holds it (a round fruit turns as it is squeezed). Higher, a
 /// round object carried and turned lags its turn. Chosen on bench_registration_zoo.
 constexpr double kUnseenInformation = 0.005;
-
-using Features = Eigen::Matrix<double, 9, 1>;
-
-/// One cluster's transform while a cloud is registered: goal = transform q~ + translation.
-struct ClusterFit {
-  Eigen::Matrix<double, 3, 9> transform = Eigen::Matrix<double, 3, 9>::Zero();
-  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d goal(const Features& features) const {
-    return transform * features + translation;
-  }
-};
-
-/// Weighted least-squares sums of one cluster's fit: pairs of features q~ and targets y,
-/// the targets taken about a reference near the object.
-struct FitSums {
-  double weight = 0.0;
-  Features features = Features::Zero();
-  Eigen::Vector3d targets = Eigen::Vector3d::Zero();
-  Eigen::Matrix<double, 3, 9> target_features = Eigen::Matrix<double, 3, 9>::Zero();
-  Eigen::Matrix<double, 9, 9> feature_moment = Eigen::Matrix<double, 9, 9>::Zero();
-
-  void add(double w, const Features& f, const Eigen::Vector3d& y) {
-    weight += w;
-    features += w * f;
-    targets += w * y;
-    target_features.noalias() += (w * y) * f.transpose();
-    feature_moment.noalias() += (w * f) * f.transpose();
-  }
-};
-
-/// A matching point's place in one cluster.
-struct Membership {
-  std::uint32_t cluster = 0;
-  Features features = Features::Zero();  ///< q~ of its rest offset in that cluster.
-};
 
 }  // namespace
 
@@ -146,6 +116,11 @@ struct CloudRegistration::Workspace {
   void placeMatchingPoints(const std::optional<Eigen::Vector3d>& viewpoint);
   /// Places the matching points and their normals by the clusters' fits.
   void placePositions();
+  /// Cluster k's goal at a point of these features (only the first three unless quadratic).
+  Eigen::Vector3d goal(std::uint32_t k, const Features& features) const {
+    return mode == DeformationMode::kQuadratic ? fits[k].goal(features)
+                                               : fits[k].linearGoal(features.head<3>());
+  }
   /// Matches each sample to its nearest matching point within `max_distance_m`; the
   /// median distance.
   double matchSamples(double max_distance_m);
@@ -192,7 +167,7 @@ void CloudRegistration::Workspace::layOut(const ShapeMatchingBody& body,
       Features features = quadraticFeatures(cluster.rest_offsets[j]);
       if (mode != DeformationMode::kQuadratic) features.tail<6>().setZero();
       held[index_of_point[i]].push_back({k, features});
-      prior_sums[k].add(1.0, features, Eigen::Vector3d::Zero());
+      prior_sums[k].add<9>(1.0, features, Eigen::Vector3d::Zero());
     }
   }
   membership_offsets.assign(1, 0);
@@ -245,7 +220,7 @@ void CloudRegistration::Workspace::placePositions() {
   for (std::uint32_t m = 0; m < matching_points.size(); ++m) {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (std::uint32_t e = membership_offsets[m]; e < membership_offsets[m + 1]; ++e) {
-      sum += fits[memberships[e].cluster].goal(memberships[e].features);
+      sum += goal(memberships[e].cluster, memberships[e].features);
     }
     positions[m] = sum / static_cast<double>(membership_offsets[m + 1] - membership_offsets[m]);
     current_normals[m] =
@@ -400,7 +375,12 @@ void CloudRegistration::Workspace::fitClusters(const detail::RigidMotion& step,
     const Eigen::Vector3d pull = target_sums[m] / target_counts[m] - moved;
     const Eigen::Vector3d target = moved + normal * normal.dot(pull) - step.center;
     for (std::uint32_t e = membership_offsets[m]; e < membership_offsets[m + 1]; ++e) {
-      sums[memberships[e].cluster].add(1.0, memberships[e].features, target);
+      FitSums& s = sums[memberships[e].cluster];
+      if (mode == DeformationMode::kQuadratic) {
+        s.add<9>(1.0, memberships[e].features, target);
+      } else {
+        s.add<3>(1.0, memberships[e].features, target);
+      }
     }
     target_sums[m].setZero();
     target_counts[m] = 0;
@@ -447,9 +427,10 @@ void CloudRegistration::Workspace::applyFits(ShapeMatchingBody& body) {
   for (std::size_t k = 0; k < fits.size(); ++k) {
     const Cluster& cluster = body.cluster(k);
     for (std::size_t j = 0; j < cluster.points.size(); ++j) {
-      Features features = quadraticFeatures(cluster.rest_offsets[j]);
-      if (mode != DeformationMode::kQuadratic) features.tail<6>().setZero();
-      goals[cluster.points[j]] += fits[k].goal(features);
+      const Eigen::Vector3d& q = cluster.rest_offsets[j];
+      goals[cluster.points[j]] += mode == DeformationMode::kQuadratic
+                                      ? fits[k].goal(quadraticFeatures(q))
+                                      : fits[k].linearGoal(q);
     }
   }
   for (std::size_t i = 0; i < goals.size(); ++i)
@@ -519,8 +500,8 @@ double CloudRegistration::Workspace::hiddenDisagreement(
     if (viewpoint && current_normals[m].dot(*viewpoint - positions[m]) > 0.0) continue;
     const std::uint32_t begin = membership_offsets[m], end = membership_offsets[m + 1];
     for (std::uint32_t e = begin; e < end; ++e) {
-      const Eigen::Vector3d goal = fits[memberships[e].cluster].goal(memberships[e].features);
-      sum += (goal - positions[m]).squaredNorm() / static_cast<double>(end - begin);
+      const Eigen::Vector3d g = goal(memberships[e].cluster, memberships[e].features);
+      sum += (g - positions[m]).squaredNorm() / static_cast<double>(end - begin);
     }
     ++count;
   }
