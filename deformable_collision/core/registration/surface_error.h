@@ -7,8 +7,8 @@ namespace deformable_collision {
 
 /// How far a registered model's surface is estimated to lie from the object's own (metres,
 /// RMS over a side), on the side its last cloud's camera saw and on the side it did not
-/// (docs/design.md, "Registration error"). An estimate, not a bound: it misses what no view
-/// shows, such as a far side squeezed while the near one is not.
+/// (docs/design.md, "Registration of unordered clouds"). An estimate, not a bound: it misses
+/// what no view shows, such as a far side squeezed while the near one is not.
 struct SurfaceError {
   /// The seen side: the RMS distance of the used cloud points to the model's surface (the
   /// camera's noise included).
