@@ -25,11 +25,7 @@ void ContactForces::assignQueried(std::vector<SceneContact>& contacts) {
   goals_of_ = nullptr;
   queried_runs_.clear();
   for (std::size_t begin = 0; begin < contacts.size();) {
-    std::size_t end = begin + 1;
-    while (end < contacts.size() && contacts[end].object_a == contacts[begin].object_a &&
-           contacts[end].object_b == contacts[begin].object_b) {
-      ++end;
-    }
+    const std::size_t end = pairRunEnd(contacts, begin);
     queried_runs_.push_back({contacts[begin].object_a, contacts[begin].object_b, begin, end});
     begin = end;
   }
@@ -49,7 +45,6 @@ Eigen::Vector3d ContactForces::lastCycleForce(std::uint32_t object_a,
 
 void ContactForces::assignRun(std::vector<SceneContact>& contacts, const ContactRun& run,
                               const Eigen::Vector3d& dynamic_force_n) {
-  assignRegistrationErrors(contacts, run);
   if (!objects_[run.object_a]->dynamic() && !objects_[run.object_b]->dynamic()) {
     assignStiffnessRun(contacts, run);
     return;
@@ -78,6 +73,7 @@ void ContactForces::assignStiffnessRun(std::vector<SceneContact>& contacts, cons
   const double length = normal.norm();
   const Eigen::Vector3d force =
       length > 0.0 ? Eigen::Vector3d(magnitude / length * normal) : Eigen::Vector3d::Zero();
+  // The pair's registration error, set for all its contacts (assignRegistrationErrors).
   share(contacts, run, force, stiffness * (bound + contacts[run.begin].registration_error_m));
 }
 
@@ -141,23 +137,6 @@ void ContactForces::share(std::vector<SceneContact>& contacts, const ContactRun&
     const double split = contact.contact.error_bound_m > 0.0 ? std::max(w, 1.0 - w) : 0.0;
     contact.force_error_n = split * magnitude_n + contact.indentation_error_n;
   }
-}
-
-// A pair's contacts share one side of each camera, told at their mean place along their
-// depth-weighted mean normal (from b to a: each object's surface there faces the other): the
-// normals of single point pairs scatter across a flat face, and may lie along it.
-void ContactForces::assignRegistrationErrors(std::vector<SceneContact>& contacts,
-                                             const ContactRun& run) const {
-  if (run.begin == run.end) return;
-  Eigen::Vector3d position = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::Zero();
-  for (std::size_t k = run.begin; k < run.end; ++k) {
-    position += contacts[k].contact.position;
-    normal += contacts[k].contact.depth_m * contacts[k].contact.normal;
-  }
-  position /= static_cast<double>(run.end - run.begin);
-  const double error = std::max(objects_[run.object_a]->registration_error.at(position, -normal),
-                                objects_[run.object_b]->registration_error.at(position, normal));
-  for (std::size_t k = run.begin; k < run.end; ++k) contacts[k].registration_error_m = error;
 }
 
 }  // namespace deformable_collision

@@ -25,9 +25,10 @@ class ContactForces {
   ContactForces(const ContactForces&) = delete;
   ContactForces& operator=(const ContactForces&) = delete;
 
-  /// Sets force_n, force_error_n, indentation_error_n and registration_error_m of a cycle's
-  /// contacts, from its runs' impulses over `dt_s` (> 0) and the tracked objects' current
-  /// state, and keeps each dynamic pair's force for queries until the next cycle.
+  /// Sets force_n, force_error_n and indentation_error_n of a cycle's contacts (their
+  /// registration_error_m set), from its runs' impulses over `dt_s` (> 0) and the tracked
+  /// objects' current state, and keeps each dynamic pair's force for queries until the next
+  /// cycle.
   void assign(std::vector<SceneContact>& contacts, const std::vector<ContactRun>& runs,
               double dt_s);
   /// The same for contacts found apart from a cycle (a query at another level, in either
@@ -57,8 +58,6 @@ class ContactForces {
   /// The magnitude of the force of a pair without a dynamic object, and each contact's
   /// indentation into weights_.
   double stiffnessForce(const std::vector<SceneContact>& contacts, const ContactRun& run);
-  /// Each contact's registration_error_m from its objects' registrations' errors.
-  void assignRegistrationErrors(std::vector<SceneContact>& contacts, const ContactRun& run) const;
   /// The stiffness force of a pair without a dynamic object, along its mean normal, shared.
   void assignStiffnessRun(std::vector<SceneContact>& contacts, const ContactRun& run);
   /// Shares a pair's force among the run's contacts by weights_. `stiffness_bound_n` is

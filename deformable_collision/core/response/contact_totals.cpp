@@ -59,11 +59,7 @@ void summarizePairs(const std::vector<SceneContact>& contacts,
                     std::vector<PairSummary>& summaries) {
   summaries.clear();
   for (std::size_t begin = 0; begin < contacts.size();) {
-    std::size_t end = begin + 1;
-    while (end < contacts.size() && contacts[end].object_a == contacts[begin].object_a &&
-           contacts[end].object_b == contacts[begin].object_b) {
-      ++end;
-    }
+    const std::size_t end = pairRunEnd(contacts, begin);
     summaries.push_back(summarizePair(contacts, begin, end));
     begin = end;
   }

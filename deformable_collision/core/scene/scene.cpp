@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "deformable_collision/core/scene/detail/pair_query_lanes.h"
+#include "deformable_collision/core/scene/detail/registration_errors.h"
 #include "deformable_collision/core/scene/detail/scene_object.h"
 
 namespace deformable_collision {
@@ -296,6 +297,7 @@ void Scene::cycle() {
   stats_.points_displaced = response_.respond(pool_);
   stats_.points_displaced +=
       self_response_.respond(objects_, contacts_, self_contacts_begin_, config_.friction);
+  detail::assignRegistrationErrors(objects_, contacts_);
   if (config_.contact_forces) forces_.assign(contacts_, contact_runs_, config_.dt_s);
   // Queries between cycles see the state after the response.
   refreshStaleTrees();
@@ -486,6 +488,7 @@ void Scene::contactsAt(int level, std::optional<std::size_t> object_a,
   refreshStaleTrees();
   contacts.clear();
   detect(level, object_a, object_b, contacts, nullptr);
+  detail::assignRegistrationErrors(objects_, contacts);
   if (config_.contact_forces) forces_.assignQueried(contacts);
   stats_ = kept;
   query_counters_ = kept_counters;

@@ -111,9 +111,21 @@ struct SceneContact {
   double indentation_error_n = 0.0;
   /// How far the contact may be off the real objects' for their registrations' errors (m,
   /// >= 0): the larger of the two objects' SurfaceError, each on the side of its camera
-  /// that the pair's contacts face; 0 between objects never registered (ContactForces).
+  /// that the pair's contacts face; 0 between objects never registered
+  /// (detail::assignRegistrationErrors, whether or not forces are computed).
   double registration_error_m = 0.0;
 };
+
+/// The end of the run of contacts of the pair of contacts[begin] (a Scene lists each pair's
+/// contacts together).
+inline std::size_t pairRunEnd(const std::vector<SceneContact>& contacts, std::size_t begin) {
+  std::size_t end = begin + 1;
+  while (end < contacts.size() && contacts[end].object_a == contacts[begin].object_a &&
+         contacts[end].object_b == contacts[begin].object_b) {
+    ++end;
+  }
+  return end;
+}
 
 /// Per-cycle timings (steady clock) and counts.
 struct CycleStats {
