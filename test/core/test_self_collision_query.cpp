@@ -47,8 +47,8 @@ struct Object {
   RestSpheres rest_spheres;
 };
 
-std::vector<SphereContact> selfContacts(Object& object, int level,
-                                        QueryCounters* counts = nullptr) {
+std::vector<SphereContact> selfContacts(Object& object, int level, QueryCounters* counts = nullptr,
+                                        VectorWidth width = widestVectors()) {
   std::vector<SphereContact> contacts;
   struct Sink final : ContactSink {
     explicit Sink(std::vector<SphereContact>& c) : c(c) {}
@@ -56,7 +56,7 @@ std::vector<SphereContact> selfContacts(Object& object, int level,
     std::vector<SphereContact>& c;
   } sink(contacts);
   QueryCounters counters;
-  SelfCollisionQuery query;
+  SelfCollisionQuery query(width);
   object.tree.beginCycle();
   query.collide(object.tree, object.rest_spheres, level, kContact, kRestDistance, sink, counters);
   if (counts) *counts = counters;
@@ -231,6 +231,41 @@ TEST(SelfCollisionQuery, RandomlyShakenBlobsMatchBruteForce) {
     }
     EXPECT_EQ(found, leafPairsHolding(object.tree, {brute.begin(), brute.end()}))
         << "seed " << seed;
+  }
+}
+
+bool sameBits(const SphereContact& a, const SphereContact& b) {
+  return a.node_a == b.node_a && a.node_b == b.node_b && a.point_a == b.point_a &&
+         a.point_b == b.point_b && a.level == b.level && a.position == b.position &&
+         a.normal == b.normal && a.depth_m == b.depth_m && a.error_bound_m == b.error_bound_m;
+}
+
+TEST(SelfCollisionQuery, WideVectorsFindTheSameContactsBitForBit) {
+  if (widestVectors() == VectorWidth::kPortable) GTEST_SKIP() << "no AVX2 on this CPU";
+  std::vector<Case> cases = foldedShapes();
+  for (std::uint64_t seed = 0; seed < 4; ++seed) {
+    std::mt19937_64 engine(seed);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    Case blob{"blob " + std::to_string(seed), gridBox(12, 9, 6, 0.004), {}};
+    for (const auto& p : blob.rest) {
+      blob.deformed.push_back(p + 2.0 * kContact * Eigen::Vector3d(unit(engine), unit(engine), 0));
+    }
+    cases.push_back(blob);
+  }
+  for (const Case& c : cases) {
+    for (const int clusters : {1, 4}) {
+      Object object(c.rest, c.deformed, DeformationMode::kQuadratic, clusters);
+      QueryCounters counters;
+      const std::vector<SphereContact> portable =
+          selfContacts(object, -1, &counters, VectorWidth::kPortable);
+      const std::vector<SphereContact> wide =
+          selfContacts(object, -1, &counters, VectorWidth::kAvx2);
+      ASSERT_EQ(wide.size(), portable.size()) << c.name;
+      ASSERT_FALSE(wide.empty()) << c.name;
+      for (std::size_t i = 0; i < wide.size(); ++i) {
+        EXPECT_TRUE(sameBits(wide[i], portable[i])) << c.name << ", contact " << i;
+      }
+    }
   }
 }
 

@@ -81,6 +81,10 @@ bool endsDescentToLevel(const Node& node, int level) {
   return node.isLeaf() | (static_cast<int>(node.level) >= level);
 }
 
+/// Points' positions by slot of a tree's pointIndices(), one row per coordinate, so that
+/// a leaf's coordinates are contiguous.
+using SlotPositions = Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor>;
+
 /// The current spheres of a tree's leaves in leaf order, one array per coordinate, so that
 /// a leaf can be tested against several others at once.
 struct LeafSpheres {
@@ -165,9 +169,7 @@ class SphereTree {
   /// The current positions of the leaves' points, one row per coordinate, a column per
   /// slot of pointIndices(), so that a leaf's coordinates are contiguous. A leaf's columns
   /// are valid once current() returned its state in this cycle.
-  const Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor>& leafPositions() const {
-    return slot_positions_;
-  }
+  const SlotPositions& leafPositions() const { return slot_positions_; }
 
   /// The leaves' current spheres by leaf order. A leaf's entry is valid once current()
   /// returned its state in this cycle.
@@ -255,7 +257,7 @@ class SphereTree {
   /// Visited leaves' positions in slot order, copied where a leaf's sphere is computed: the
   /// leaf-pair tests read each coordinate of a leaf contiguously, several points per
   /// instruction.
-  Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor> slot_positions_;
+  SlotPositions slot_positions_;
   // By leaf order, what the pass over a small node's leaves and the leaf-pair tests read of
   // a leaf, without a cache line of its own per leaf.
   LeafSpheres leaf_spheres_;

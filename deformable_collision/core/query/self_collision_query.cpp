@@ -4,12 +4,17 @@
 #include <cmath>
 
 #include "deformable_collision/core/common/linear_algebra.h"
+#include "deformable_collision/core/query/detail/leaf_pair_kernels.h"
 #include "deformable_collision/core/query/detail/node_contact.h"
 
 namespace deformable_collision {
 
-RestSpheres::RestSpheres(const SphereTree& tree) : tree_(&tree) {
+RestSpheres::RestSpheres(const SphereTree& tree) : slot_points_(3, tree.pointIndices().size()) {
+  for (std::size_t s = 0; s < tree.pointIndices().size(); ++s) {
+    slot_points_.col(s) = tree.body().restPositions()[tree.pointIndices()[s]];
+  }
   spheres_.reserve(tree.nodeCount());
+  cluster_extents_.reserve(tree.nodeCount());
   for (std::uint32_t i = 0; i < tree.nodeCount(); ++i) {
     const SphereNode& node = tree.node(i);
     // A cluster's nodes are centred on its rest centre of mass; an object root over several
@@ -18,6 +23,7 @@ RestSpheres::RestSpheres(const SphereTree& tree) : tree_(&tree) {
                                        ? Eigen::Vector3d::Zero()
                                        : tree.body().cluster(node.cluster).rest_center_of_mass;
     spheres_.push_back({node.rest_center + origin, node.rest_radius_m});
+    cluster_extents_.push_back(node.rest_center.norm() + node.rest_radius_m);
   }
 }
 
@@ -25,6 +31,9 @@ namespace {
 
 /// Relative margin of the rest and stretch tests, far above their rounding.
 constexpr double kMargin = 1e-9;
+
+/// Nodes of at most this many leaves have their leaf pairs tested directly.
+constexpr std::uint32_t kBucketLeaves = SphereTree::kBucketLeaves;
 
 /// A sphere at most this many times its rest radius (plus the contact distance) is used as the
 /// tree gives it; a wider one is measured from the points.
@@ -44,6 +53,15 @@ struct ClosestSlots {
   bool found = false;
 };
 
+/// Squared distance of the points at slots s and t, summed as the wide kernels sum it, so
+/// that both tests find the same bits.
+double squaredDistance(const SlotPositions& points, std::uint32_t s, std::uint32_t t) {
+  const double dx = points(0, s) - points(0, t);
+  const double dy = points(1, s) - points(1, t);
+  const double dz = points(2, s) - points(2, t);
+  return dx * dx + dy * dy + dz * dz;
+}
+
 /// A lower bound of the least singular value of a 3x3 matrix: the product of the three is
 /// |det|, and the other two are at most the largest. Exact for a rotation and tight for a
 /// nearly uniform stretch; rounding is covered by a relative margin far above it.
@@ -52,6 +70,87 @@ double leastSingularValueBound(const Eigen::Matrix3d& matrix) {
   if (!(largest > 0.0)) return 0.0;
   return std::abs(matrix.determinant()) / (largest * largest) * (1.0 - kMargin);
 }
+
+/// The leaves under a node of at most kBucketLeaves leaves, with the spheres the query
+/// uses for them as coordinate arrays.
+struct SmallNodeLeaves {
+  std::uint32_t count = 0;
+  std::uint32_t node[kBucketLeaves];
+  double x[kBucketLeaves], y[kBucketLeaves], z[kBucketLeaves], radius[kBucketLeaves];
+};
+static_assert(kBucketLeaves * kBucketLeaves <= 64, "two small nodes' leaf pairs are one mask");
+
+/// Of a node's leaf pairs with itself, each pair once and each leaf with itself: bit 8 k + l
+/// for l >= k.
+constexpr std::uint64_t kSameNodePairs = 0x80C0E0F0F8FCFEFFull;
+
+#if defined(__GNUC__) && defined(__x86_64__)
+/// reachingPairs, four of b's leaf spheres per instruction.
+__attribute__((target("avx2"))) std::uint64_t reachingPairsAvx2(const SmallNodeLeaves& a,
+                                                                const SmallNodeLeaves& b,
+                                                                double contact_distance_m) {
+  std::uint64_t pairs = 0;
+  for (std::uint32_t k = 0; k < a.count; ++k) {
+    pairs |= static_cast<std::uint64_t>(reachMaskAvx2(a.x[k], a.y[k], a.z[k],
+                                                      a.radius[k] + contact_distance_m, b.x, b.y,
+                                                      b.z, b.radius, b.count))
+             << (8 * k);
+  }
+  return pairs;
+}
+#endif
+
+/// The leaf pairs of two small nodes whose spheres come within the contact distance: bit
+/// 8 k + l for a's leaf k and b's leaf l. Every width finds the same bits.
+std::uint64_t reachingPairs(const SmallNodeLeaves& a, const SmallNodeLeaves& b,
+                            double contact_distance_m, VectorWidth width) {
+#if defined(__GNUC__) && defined(__x86_64__)
+  if (width != VectorWidth::kPortable) return reachingPairsAvx2(a, b, contact_distance_m);
+#endif
+  std::uint64_t pairs = 0;
+  for (std::uint32_t k = 0; k < a.count; ++k) {
+    for (std::uint32_t l = 0; l < b.count; ++l) {
+      const double dx = a.x[k] - b.x[l], dy = a.y[k] - b.y[l], dz = a.z[k] - b.z[l];
+      const double reach_m = b.radius[l] + (a.radius[k] + contact_distance_m);
+      pairs |= static_cast<std::uint64_t>(dx * dx + dy * dy + dz * dz < reach_m * reach_m)
+               << (8 * k + l);
+    }
+  }
+  return pairs;
+}
+
+#if defined(__GNUC__) && defined(__x86_64__)
+/// The closest pair of leaf a's points and leaf b's (at most eight) closer than `closest`
+/// says and, unless `distant`, farther than sqrt(apart_squared) at rest: the same pair, to
+/// the bit, as the point-by-point test. Compiled for AVX2 apart, so that the kernels inline.
+__attribute__((target("avx2"))) bool closestPairAvx2(const SlotPositions& positions,
+                                                     const SlotPositions& rest, const NodeState& a,
+                                                     const NodeState& b, bool distant,
+                                                     double apart_squared, ClosestSlots& closest,
+                                                     std::size_t& point_tests) {
+  const std::uint32_t s = a.first_point;
+  const std::uint32_t t = b.first_point;
+  const double* const xa[3] = {&positions(0, s), &positions(1, s), &positions(2, s)};
+  const double* const xb[3] = {&positions(0, t), &positions(1, t), &positions(2, t)};
+  double squared_m2 = 0.0;
+  std::uint32_t offset_a = 0;
+  std::uint32_t offset_b = 0;
+  bool found = false;
+  if (distant) {
+    found = closestPairOfEightAvx2(xa[0], xa[1], xa[2], a.point_count, xb[0], xb[1], xb[2],
+                                   b.point_count, closest.squared_distance_m2, squared_m2, offset_a,
+                                   offset_b, point_tests);
+  } else {
+    const double* const ra[3] = {&rest(0, s), &rest(1, s), &rest(2, s)};
+    const double* const rb[3] = {&rest(0, t), &rest(1, t), &rest(2, t)};
+    found = closestPairApartAtRestOfEightAvx2(xa, ra, a.point_count, xb, rb, b.point_count,
+                                              apart_squared, closest.squared_distance_m2,
+                                              squared_m2, offset_a, offset_b, point_tests);
+  }
+  if (found) closest = {squared_m2, s + offset_a, t + offset_b, true};
+  return found;
+}
+#endif
 
 }  // namespace
 
@@ -66,8 +165,9 @@ struct SelfCollisionQuery::Descent {
   QueryCounters& counters;
   std::vector<PendingPair>& stack;
   const std::vector<ClusterStretch>& stretches;
-  std::vector<MeasuredSphere>& measured_spheres;
+  std::vector<QuerySphere>& query_spheres;
   std::uint64_t query_serial;
+  VectorWidth width;
 
   /// Whether the fits of nodes a's and b's clusters keep every pair of their points farther
   /// than the rest distance apart at rest from coming within the contact distance: tried
@@ -76,17 +176,19 @@ struct SelfCollisionQuery::Descent {
     const SphereNode& na = tree.node(a);
     const SphereNode& nb = tree.node(b);
     if (na.cluster < 0 || nb.cluster < 0) return false;
-    if (na.cluster == nb.cluster) return keptApartInCluster(na, nb);
-    return keptApartAcross(a, na.cluster, b, nb.cluster) ||
-           keptApartAcross(b, nb.cluster, a, na.cluster);
+    if (na.cluster == nb.cluster) {
+      return stretches[na.cluster].may_keep_apart && keptApartInCluster(a, b, na.cluster);
+    }
+    return (stretches[na.cluster].may_keep_apart &&
+            keptApartAcross(a, na.cluster, b, nb.cluster)) ||
+           (stretches[nb.cluster].may_keep_apart && keptApartAcross(b, nb.cluster, a, na.cluster));
   }
 
   /// One cluster's fit f: |f(u) - f(v)| >= stretch |u - v| (ClusterStretch) for u and v of
   /// the two nodes, with e from their rest spheres (centred coordinates).
-  bool keptApartInCluster(const SphereNode& na, const SphereNode& nb) const {
-    const ClusterStretch& k = stretches[na.cluster];
-    const double extent_m = std::max(na.rest_center.norm() + na.rest_radius_m,
-                                     nb.rest_center.norm() + nb.rest_radius_m);
+  bool keptApartInCluster(std::uint32_t a, std::uint32_t b, std::int32_t cluster) const {
+    const ClusterStretch& k = stretches[cluster];
+    const double extent_m = std::max(rest.clusterExtent(a), rest.clusterExtent(b));
     const double stretch = k.least_stretch - 2.0 * extent_m * k.quadratic_norms;
     return stretch * rest_distance_m - 2.0 * k.deviation_m >= contact_distance_m * (1.0 + kMargin);
   }
@@ -126,36 +228,38 @@ struct SelfCollisionQuery::Descent {
     return deformation.transform * features + deformation.translation;
   }
 
-  /// Whether some point of node a and some point of node b (a itself if a == b) may lie
-  /// more than the rest distance apart at rest: only then can the pair hold a self-contact.
-  /// The relative margins keep both tests on the safe side of their rounding.
-  bool mayHoldDistantPair(std::uint32_t a, std::uint32_t b) const {
+  /// How nodes a and b (a itself if a == b) lie at rest: whether some point of a and some
+  /// point of b may lie more than the rest distance apart (only then can the pair hold a
+  /// self-contact), and whether every pair does. The relative margins keep both tests on
+  /// the safe side of their rounding.
+  struct AtRest {
+    bool may_hold_distant;
+    bool all_distant;
+  };
+  AtRest atRest(std::uint32_t a, std::uint32_t b) const {
     const Sphere& ra = rest[a];
     const Sphere& rb = rest[b];
-    const double farthest_m =
-        a == b ? 2.0 * ra.radius : (ra.center - rb.center).norm() + ra.radius + rb.radius;
-    return farthest_m * (1.0 + kMargin) > rest_distance_m;
-  }
-
-  /// Whether every point of a lies more than the rest distance from every point of b at rest.
-  bool allDistant(std::uint32_t a, std::uint32_t b) const {
-    const Sphere& ra = rest[a];
-    const Sphere& rb = rest[b];
-    const double nearest_m = (ra.center - rb.center).norm() - ra.radius - rb.radius;
-    return nearest_m > rest_distance_m * (1.0 + kMargin);
+    if (a == b) return {2.0 * ra.radius * (1.0 + kMargin) > rest_distance_m, false};
+    const double between_m = (ra.center - rb.center).norm();
+    return {(between_m + ra.radius + rb.radius) * (1.0 + kMargin) > rest_distance_m,
+            between_m - ra.radius - rb.radius > rest_distance_m * (1.0 + kMargin)};
   }
 
   /// The node's sphere from the tree, or, where its cluster's fit is poor (a fold inside the
   /// cluster: the sphere far wider than at rest), one measured around its points' mean.
   /// A loose sphere would keep every node of a folded cluster in reach of every other.
+  /// Chosen once a query: a descent asks for the same nodes' spheres many times.
   const Sphere& sphere(std::uint32_t node) {
+    QuerySphere& chosen = query_spheres[node];
+    if (chosen.query != query_serial) chosen = {chooseSphere(node), query_serial};
+    return chosen.sphere;
+  }
+
+  Sphere chooseSphere(std::uint32_t node) const {
     const Sphere& fitted = tree.current(node).sphere;
     if (fitted.radius <= kLooseSphere * rest[node].radius + contact_distance_m) return fitted;
-    MeasuredSphere& measured = measured_spheres[node];
-    if (measured.query != query_serial) {
-      measured = {measureSphere(node), query_serial};
-    }
-    return measured.sphere.radius < fitted.radius ? measured.sphere : fitted;
+    const Sphere measured = measureSphere(node);
+    return measured.radius < fitted.radius ? measured : fitted;
   }
 
   Sphere measureSphere(std::uint32_t node) const {
@@ -184,12 +288,21 @@ struct SelfCollisionQuery::Descent {
     if (a != b && !withinReach(sphere(a), sphere(b), contact_distance_m)) {
       return;
     }
-    if (mayHoldDistantPair(a, b) && !keptApartByClusters(a, b)) stack.push_back({a, b});
+    const AtRest at_rest = atRest(a, b);
+    if (at_rest.may_hold_distant && !keptApartByClusters(a, b)) {
+      stack.push_back({a, b, at_rest.all_distant});
+    }
   }
 
   /// A node against itself: its children against each other and each against itself.
   void visitNode(std::uint32_t index) {
     const NodeState& node = tree.current(index);
+    if (to_leaves && node.leaf_count <= kBucketLeaves) {
+      SmallNodeLeaves leaves;
+      gatherLeaves(node, leaves);
+      collideLeaves(leaves, leaves, true);
+      return;
+    }
     if (node.isLeaf()) {
       testLeaves(node, node, false);
       return;
@@ -204,9 +317,17 @@ struct SelfCollisionQuery::Descent {
   void visitPair(const PendingPair& pair) {
     const NodeState& na = tree.current(pair.node_a);
     const NodeState& nb = tree.current(pair.node_b);
-    const bool distant = allDistant(pair.node_a, pair.node_b);
+    const bool distant = pair.all_distant;
     const bool stop_a = terminal(na);
     const bool stop_b = terminal(nb);
+    if (to_leaves && na.leaf_count <= kBucketLeaves && nb.leaf_count <= kBucketLeaves) {
+      SmallNodeLeaves leaves_a;
+      SmallNodeLeaves leaves_b;
+      gatherLeaves(na, leaves_a);
+      gatherLeaves(nb, leaves_b);
+      collideLeaves(leaves_a, leaves_b, false);
+      return;
+    }
     if (stop_a && stop_b && distant && !to_leaves) {
       const Sphere& sa = sphere(pair.node_a);
       const Sphere& sb = sphere(pair.node_b);
@@ -234,13 +355,71 @@ struct SelfCollisionQuery::Descent {
     }
   }
 
+  void gatherLeaves(const NodeState& state, SmallNodeLeaves& leaves) {
+    leaves.count = state.leaf_count;
+    for (std::uint32_t k = 0; k < state.leaf_count; ++k) {
+      const std::uint32_t leaf = tree.leafNode(state.first_leaf + k);
+      const Sphere& s = sphere(leaf);
+      leaves.node[k] = leaf;
+      leaves.x[k] = s.center.x();
+      leaves.y[k] = s.center.y();
+      leaves.z[k] = s.center.z();
+      leaves.radius[k] = s.radius;
+    }
+  }
+
+  /// Every leaf of a against every leaf of b (each pair once, and each leaf with itself, if
+  /// `same`): the leaf pairs of two small nodes, tested without the levels between them and
+  /// their leaves, whose pairs would mostly be in reach and be descended anyway.
+  void collideLeaves(const SmallNodeLeaves& a, const SmallNodeLeaves& b, bool same) {
+    counters.node_pairs_tested += same ? a.count * (a.count + 1) / 2 : a.count * b.count;
+    std::uint64_t pairs = reachingPairs(a, b, contact_distance_m, width);
+    if (same) pairs &= kSameNodePairs;
+    while (pairs != 0) {
+      const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(pairs));
+      pairs &= pairs - 1;
+      leafPair(a.node[bit >> 3], b.node[bit & 7]);
+    }
+  }
+
+  /// A leaf pair in reach (a leaf with itself if a == b), tested if it may hold a
+  /// self-contact by its rest shape and, in one cluster, by that cluster's fit. Two clusters'
+  /// fits are not tried again: the small nodes above failed that test, and it costs about
+  /// what testing the leaves' points does.
+  void leafPair(std::uint32_t a, std::uint32_t b) {
+    const AtRest at_rest = atRest(a, b);
+    if (!at_rest.may_hold_distant) return;
+    const std::int32_t cluster = tree.node(a).cluster;
+    if (cluster >= 0 && cluster == tree.node(b).cluster && stretches[cluster].may_keep_apart &&
+        keptApartInCluster(a, b, cluster)) {
+      return;
+    }
+    testLeaves(tree.current(a), tree.current(b), at_rest.all_distant);
+  }
+
   /// The closest pair of a's and b's points (each pair once if a is b) that is closer than
   /// the contact distance and, unless `distant`, farther than the rest distance at rest.
   void testLeaves(const NodeState& a, const NodeState& b, bool distant) {
     ++counters.leaf_pairs_tested;
-    const auto& positions = tree.leafPositions();
-    const double rest_squared_m2 = rest_distance_m * rest_distance_m;
     ClosestSlots closest{contact_distance_m * contact_distance_m};
+#if defined(__GNUC__) && defined(__x86_64__)
+    if (&a != &b && width != VectorWidth::kPortable && b.point_count <= 8) {
+      if (closestPairAvx2(tree.leafPositions(), rest.slotPoints(), a, b, distant,
+                          rest_distance_m * rest_distance_m, closest, counters.point_tests)) {
+        addLeafContact(a, b, closest);
+      }
+      return;
+    }
+#endif
+    closestPairPointByPoint(a, b, distant, closest);
+    if (closest.found) addLeafContact(a, b, closest);
+  }
+
+  void closestPairPointByPoint(const NodeState& a, const NodeState& b, bool distant,
+                               ClosestSlots& closest) {
+    const SlotPositions& positions = tree.leafPositions();
+    const SlotPositions& rest_points = rest.slotPoints();
+    const double rest_squared_m2 = rest_distance_m * rest_distance_m;
     const bool same = &a == &b;
     // Only a's points within reach of b's sphere can have a partner in b.
     const double reach_m = b.sphere.radius + contact_distance_m;
@@ -251,15 +430,14 @@ struct SelfCollisionQuery::Descent {
       }
       for (std::uint32_t t = same ? s + 1 : b.first_point; t < b.first_point + b.point_count; ++t) {
         ++counters.point_tests;
-        const double squared_m2 = (positions.col(s) - positions.col(t)).squaredNorm();
+        const double squared_m2 = squaredDistance(positions, s, t);
         if (squared_m2 >= closest.squared_distance_m2) continue;
-        if (!distant && (rest.slotPoint(s) - rest.slotPoint(t)).squaredNorm() <= rest_squared_m2) {
+        if (!distant && squaredDistance(rest_points, s, t) <= rest_squared_m2) {
           continue;
         }
         closest = {squared_m2, s, t, true};
       }
     }
-    if (closest.found) addLeafContact(a, b, closest);
   }
 
   void addLeafContact(const NodeState& a, const NodeState& b, const ClosestSlots& closest) {
@@ -285,10 +463,11 @@ void SelfCollisionQuery::collide(SphereTree& tree, const RestSpheres& rest, int 
                                  double contact_distance_m, double rest_distance_m,
                                  ContactSink& contacts, QueryCounters& counters) {
   const bool to_leaves = level < 0 || level >= tree.maxLevel();
-  measureStretches(tree.body());
-  if (measured_spheres_.size() < tree.nodeCount()) measured_spheres_.resize(tree.nodeCount());
+  measureStretches(tree.body(), contact_distance_m, rest_distance_m);
+  if (query_spheres_.size() < tree.nodeCount()) query_spheres_.resize(tree.nodeCount());
   Descent descent{tree,     rest,     level,  to_leaves,  contact_distance_m, rest_distance_m,
-                  contacts, counters, stack_, stretches_, measured_spheres_,  ++query_serial_};
+                  contacts, counters, stack_, stretches_, query_spheres_,     ++query_serial_,
+                  width_};
   stack_.clear();
   descent.push(0, 0);
   while (!stack_.empty()) {
@@ -302,7 +481,8 @@ void SelfCollisionQuery::collide(SphereTree& tree, const RestSpheres& rest, int 
   }
 }
 
-void SelfCollisionQuery::measureStretches(const ShapeMatchingBody& body) {
+void SelfCollisionQuery::measureStretches(const ShapeMatchingBody& body, double contact_distance_m,
+                                          double rest_distance_m) {
   stretches_.resize(body.clusterCount());
   const bool quadratic = body.config().mode == DeformationMode::kQuadratic;
   for (std::size_t k = 0; k < body.clusterCount(); ++k) {
@@ -317,6 +497,8 @@ void SelfCollisionQuery::measureStretches(const ShapeMatchingBody& body) {
     stretch.deviation_m = deformation.goal_deviation_bound_m;
     stretch.rest_center_m = body.cluster(k).rest_center_of_mass;
     stretch.linear = deformation.transform.leftCols<3>();
+    stretch.may_keep_apart = stretch.least_stretch * rest_distance_m - stretch.deviation_m >=
+                             contact_distance_m * (1.0 + kMargin);
   }
 }
 

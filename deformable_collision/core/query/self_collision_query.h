@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "deformable_collision/core/common/wide_vectors.h"
 #include "deformable_collision/core/hierarchy/bounding_sphere.h"
 #include "deformable_collision/core/hierarchy/sphere_tree.h"
 #include "deformable_collision/core/query/collision_query.h"
@@ -11,21 +12,24 @@ namespace deformable_collision {
 
 /// What a self-collision query reads of an object's rest shape: each node's rest sphere in
 /// the object's frame (SphereNode keeps it in its cluster's centred coordinates), so that a
-/// node pair's rest distances are bounded without reading its points.
+/// node pair's rest distances are bounded without reading its points, and the points' rest
+/// positions in the tree's slot order, so that a leaf's are contiguous.
 class RestSpheres {
  public:
-  /// The rest spheres of `tree`'s nodes; the tree must outlive it.
+  /// The rest spheres of `tree`'s nodes.
   explicit RestSpheres(const SphereTree& tree);
 
   const Sphere& operator[](std::uint32_t node) const { return spheres_[node]; }
-  /// The rest position of the point at `slot` of the tree's pointIndices().
-  const Eigen::Vector3d& slotPoint(std::uint32_t slot) const {
-    return tree_->body().restPositions()[tree_->pointIndices()[slot]];
-  }
+  /// The rest positions of the points by slot of the tree's pointIndices(), one row per
+  /// coordinate, as the tree's leafPositions() holds their current positions.
+  const SlotPositions& slotPoints() const { return slot_points_; }
+  /// How far a cluster's node's rest points reach from its cluster's rest centre of mass.
+  double clusterExtent(std::uint32_t node) const { return cluster_extents_[node]; }
 
  private:
-  const SphereTree* tree_;
   std::vector<Sphere> spheres_;
+  std::vector<double> cluster_extents_;
+  SlotPositions slot_points_;
 };
 
 /// Descends one sphere tree against itself for the pairs of its points that came within the
@@ -35,6 +39,10 @@ class RestSpheres {
 /// traversal stack, so that repeated queries allocate nothing.
 class SelfCollisionQuery {
  public:
+  /// A query whose leaf tests use vectors of at most `width` (every width finds the same
+  /// contacts, bit for bit).
+  explicit SelfCollisionQuery(VectorWidth width = widestVectors()) : width_(width) {}
+
   /// Adds to `contacts` the self-contacts of `tree` at `level` (-1 or >= maxLevel(): the
   /// leaves), the node pairs a != b whose spheres come closer than `contact_distance_m` and
   /// whose points all lie more than `rest_distance_m` apart at rest (from `rest`, which must
@@ -62,24 +70,31 @@ class SelfCollisionQuery {
     double deviation_m = 0.0;
     Eigen::Vector3d rest_center_m = Eigen::Vector3d::Zero();
     Eigen::Matrix3d linear = Eigen::Matrix3d::Identity();
+    /// Whether the stretch can keep any pair apart at all: a fold inside the cluster
+    /// (least_stretch near 0) never does, whatever the nodes.
+    bool may_keep_apart = false;
   };
   struct PendingPair {
     std::uint32_t node_a = 0;
     std::uint32_t node_b = 0;
+    bool all_distant = false;  ///< Every point of a farther than the rest distance from b's.
   };
-  void measureStretches(const ShapeMatchingBody& body);
+  void measureStretches(const ShapeMatchingBody& body, double contact_distance_m,
+                        double rest_distance_m);
   /// One query's state and steps (self_collision_query.cpp).
   struct Descent;
 
   std::vector<PendingPair> stack_;
   std::vector<ClusterStretch> stretches_;  ///< Of the tree queried, per cluster.
-  /// A node's sphere measured from its points in query `query`, where the tree's is loose.
-  struct MeasuredSphere {
+  /// The sphere a query uses for a node (SelfCollisionQuery::Descent::sphere), chosen in
+  /// query `query`.
+  struct QuerySphere {
     Sphere sphere;
     std::uint64_t query = 0;
   };
-  std::vector<MeasuredSphere> measured_spheres_;
+  std::vector<QuerySphere> query_spheres_;
   std::uint64_t query_serial_ = 0;
+  VectorWidth width_;
 };
 
 }  // namespace deformable_collision
