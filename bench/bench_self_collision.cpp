@@ -4,7 +4,7 @@
 // lying on a floor with it on against off.
 //   bench_self_collision points clusters results_dir [repeats=10]
 // -> self_collision.csv. Times are the least of `repeats` queries (a shared machine's noise
-// only adds) and of 3 runs of 50 cycles.
+// only adds); the flat cycles the median of blocks of 10, self_collision off and on in turn.
 #include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <memory>
 #include <set>
 #include <string>
 #include <utility>
@@ -136,32 +137,46 @@ FoldFigures folded(const Points& rest, int clusters, double contact_m, double re
   return f;
 }
 
-/// The mean whole cycle of the strip lying on a static floor, settled, least of 3 runs.
-double flatCycleMs(const Points& rest, int clusters, double contact_m, bool self_collision) {
-  double least = std::numeric_limits<double>::infinity();
-  for (int run = 0; run < 3; ++run) {
-    dc::SceneConfig config;
-    config.contact_distance_m = contact_m;
-    dc::Scene scene(config);
-    dc::ObjectConfig floor;
-    floor.name = "floor";
-    floor.kind = dc::ObjectKind::kStatic;
-    Points floor_points = dc::gridBox(60, 20, 1, 0.01);
-    for (auto& p : floor_points) p.z() -= 0.5 * contact_m + 0.002;
-    scene.addObject(floor, floor_points);
-    dc::ObjectConfig s;
-    s.name = "strip";
-    s.shape.clusters = clusters;
-    s.self_collision = self_collision;
-    Points lifted = rest;
-    for (auto& p : lifted) p.z() += contact_m;
-    scene.addObject(s, lifted);
-    for (int c = 0; c < 50; ++c) scene.cycle();
-    const auto start = db::Clock::now();
-    for (int c = 0; c < 50; ++c) scene.cycle();
-    least = std::min(least, db::millisecondsSince(start) / 50);
+/// The strip lying on a static floor, settled.
+std::unique_ptr<dc::Scene> flatStrip(const Points& rest, int clusters, double contact_m,
+                                     bool self_collision) {
+  dc::SceneConfig config;
+  config.contact_distance_m = contact_m;
+  auto scene = std::make_unique<dc::Scene>(config);
+  dc::ObjectConfig floor;
+  floor.name = "floor";
+  floor.kind = dc::ObjectKind::kStatic;
+  Points floor_points = dc::gridBox(60, 20, 1, 0.01);
+  for (auto& p : floor_points) p.z() -= 0.5 * contact_m + 0.002;
+  scene->addObject(floor, floor_points);
+  dc::ObjectConfig s;
+  s.name = "strip";
+  s.shape.clusters = clusters;
+  s.self_collision = self_collision;
+  Points lifted = rest;
+  for (auto& p : lifted) p.z() += contact_m;
+  scene->addObject(s, lifted);
+  for (int c = 0; c < 50; ++c) scene->cycle();
+  return scene;
+}
+
+/// The flat strip's whole cycle with self_collision off and on: blocks of 10 cycles of
+/// each in turn, the median block of each, so that the host's drift falls on both alike.
+std::pair<double, double> flatCyclesMs(const Points& rest, int clusters, double contact_m) {
+  constexpr int kBlocks = 21;
+  const std::unique_ptr<dc::Scene> scenes[2] = {flatStrip(rest, clusters, contact_m, false),
+                                                flatStrip(rest, clusters, contact_m, true)};
+  std::vector<double> blocks[2];
+  for (int b = 0; b < kBlocks; ++b) {
+    for (int k = 0; k < 2; ++k) {
+      const auto start = db::Clock::now();
+      for (int c = 0; c < 10; ++c) scenes[k]->cycle();
+      blocks[k].push_back(db::millisecondsSince(start) / 10);
+    }
   }
-  return least;
+  for (auto& times : blocks)
+    std::nth_element(times.begin(), times.begin() + kBlocks / 2, times.end());
+  return {blocks[0][kBlocks / 2], blocks[1][kBlocks / 2]};
 }
 
 }  // namespace
@@ -181,8 +196,7 @@ int main(int argc, char** argv) {
   const double contact_m = spacing_m;
   const double rest_m = dc::kSelfRestContactDistances * contact_m;
   const FoldFigures f = folded(rest, clusters, contact_m, rest_m, repeats);
-  const double off_ms = flatCycleMs(rest, clusters, contact_m, false);
-  const double on_ms = flatCycleMs(rest, clusters, contact_m, true);
+  const auto [off_ms, on_ms] = flatCyclesMs(rest, clusters, contact_m);
   db::CsvAppender csv(results + "/self_collision.csv",
                       "points,clusters,contact_distance_m,self_query_ms,node_pairs,point_tests,"
                       "self_contacts,missed,kdtree_ms,kdtree_pairs,flat_cycle_off_ms,"

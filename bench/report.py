@@ -767,7 +767,7 @@ def self_collision_report(results, rows):
              "kd-tree radius search with the same rest rule (least of 3). Self-contacts are leaf "
              "pairs; the kd-tree's are point pairs, every one under a leaf contact (missed: 0). "
              "Then the strip lying flat on a floor: the whole cycle with self_collision off and "
-             "on (mean of 50 cycles, least of 3 runs).\n\n")
+             "on (median of 21 blocks of 10 cycles, off and on in turn).\n\n")
     text += table(["clusters", "points", "self-query ms", "node pairs", "self-contacts",
                    "us per contact", "kd-tree ms", "kd-tree / ours", "flat cycle off / on ms"],
                   [(clusters, points, f"{float(r['self_query_ms']):.2f}", r["node_pairs"],
