@@ -77,8 +77,24 @@ struct SmallNodeLeaves {
   std::uint32_t count = 0;
   std::uint32_t node[kBucketLeaves];
   double x[kBucketLeaves], y[kBucketLeaves], z[kBucketLeaves], radius[kBucketLeaves];
+  /// Each leaf's box around its current points, its least and greatest coordinates.
+  const double* low[kBucketLeaves];
+  const double* high[kBucketLeaves];
 };
 static_assert(kBucketLeaves * kBucketLeaves <= 64, "two small nodes' leaf pairs are one mask");
+
+/// Whether leaf k of a and leaf l of b are at least the contact distance apart by their
+/// boxes. Summed as the point tests sum a squared distance, each term at most theirs, so
+/// that no pair of their points can pass the point test.
+bool boxesApart(const SmallNodeLeaves& a, std::uint32_t k, const SmallNodeLeaves& b,
+                std::uint32_t l, double contact_distance_m) {
+  double gap[3];
+  for (int i = 0; i < 3; ++i) {
+    gap[i] = std::max({0.0, a.low[k][i] - b.high[l][i], b.low[l][i] - a.high[k][i]});
+  }
+  return gap[0] * gap[0] + gap[1] * gap[1] + gap[2] * gap[2] >=
+         contact_distance_m * contact_distance_m;
+}
 
 /// Of a node's leaf pairs with itself, each pair once and each leaf with itself: bit 8 k + l
 /// for l >= k.
@@ -166,6 +182,7 @@ struct SelfCollisionQuery::Descent {
   std::vector<PendingPair>& stack;
   const std::vector<ClusterStretch>& stretches;
   std::vector<QuerySphere>& query_spheres;
+  std::vector<LeafBox>& leaf_boxes;
   std::uint64_t query_serial;
   VectorWidth width;
 
@@ -365,7 +382,29 @@ struct SelfCollisionQuery::Descent {
       leaves.y[k] = s.center.y();
       leaves.z[k] = s.center.z();
       leaves.radius[k] = s.radius;
+      const LeafBox& box = leafBox(state.first_leaf + k);
+      leaves.low[k] = box.low;
+      leaves.high[k] = box.high;
     }
+  }
+
+  /// The box around the current points of the leaf at `ordinal` in leaf order, which must
+  /// be current; measured once a query.
+  const LeafBox& leafBox(std::uint32_t ordinal) {
+    LeafBox& box = leaf_boxes[ordinal];
+    if (box.query == query_serial) return box;
+    box.query = query_serial;
+    const SlotPositions& positions = tree.leafPositions();
+    const std::uint32_t first = tree.leafSlotStarts()[ordinal];
+    const std::uint32_t end = tree.leafSlotStarts()[ordinal + 1];
+    for (int i = 0; i < 3; ++i) {
+      box.low[i] = box.high[i] = positions(i, first);
+      for (std::uint32_t s = first + 1; s < end; ++s) {
+        box.low[i] = std::min(box.low[i], positions(i, s));
+        box.high[i] = std::max(box.high[i], positions(i, s));
+      }
+    }
+    return box;
   }
 
   /// Every leaf of a against every leaf of b (each pair once, and each leaf with itself, if
@@ -378,6 +417,7 @@ struct SelfCollisionQuery::Descent {
     while (pairs != 0) {
       const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(pairs));
       pairs &= pairs - 1;
+      if (boxesApart(a, bit >> 3, b, bit & 7, contact_distance_m)) continue;
       leafPair(a.node[bit >> 3], b.node[bit & 7]);
     }
   }
@@ -465,9 +505,12 @@ void SelfCollisionQuery::collide(SphereTree& tree, const RestSpheres& rest, int 
   const bool to_leaves = level < 0 || level >= tree.maxLevel();
   measureStretches(tree.body(), contact_distance_m, rest_distance_m);
   if (query_spheres_.size() < tree.nodeCount()) query_spheres_.resize(tree.nodeCount());
-  Descent descent{tree,     rest,     level,  to_leaves,  contact_distance_m, rest_distance_m,
-                  contacts, counters, stack_, stretches_, query_spheres_,     ++query_serial_,
-                  width_};
+  if (leaf_boxes_.size() < tree.leafSlotStarts().size()) {
+    leaf_boxes_.resize(tree.leafSlotStarts().size());
+  }
+  Descent descent{
+      tree,     rest,   level,      to_leaves,      contact_distance_m, rest_distance_m, contacts,
+      counters, stack_, stretches_, query_spheres_, leaf_boxes_,        ++query_serial_, width_};
   stack_.clear();
   descent.push(0, 0);
   while (!stack_.empty()) {
