@@ -36,7 +36,7 @@ constexpr double kMargin = 1e-9;
 constexpr std::uint32_t kBucketLeaves = SphereTree::kBucketLeaves;
 
 /// A sphere at most this many times its rest radius (plus the contact distance) is used as the
-/// tree gives it; a wider one is measured from the points.
+/// tree gives it; a wider one is replaced by the sphere around the box of its points.
 constexpr double kLooseSphere = 2.0;
 
 /// Whether two spheres come closer than the contact distance.
@@ -83,15 +83,13 @@ struct SmallNodeLeaves {
 };
 static_assert(kBucketLeaves * kBucketLeaves <= 64, "two small nodes' leaf pairs are one mask");
 
-/// Whether leaf k of a and leaf l of b are at least the contact distance apart by their
-/// boxes. Summed as the point tests sum a squared distance, each term at most theirs, so
-/// that no pair of their points can pass the point test.
-bool boxesApart(const SmallNodeLeaves& a, std::uint32_t k, const SmallNodeLeaves& b,
-                std::uint32_t l, double contact_distance_m) {
+/// Whether two boxes, given by their least and greatest coordinates, lie at least the
+/// contact distance apart. Summed as the point tests sum a squared distance, each term at
+/// most theirs, so that no pair of the points inside can pass the point test.
+bool boxesApart(const double* low_a, const double* high_a, const double* low_b,
+                const double* high_b, double contact_distance_m) {
   double gap[3];
-  for (int i = 0; i < 3; ++i) {
-    gap[i] = std::max({0.0, a.low[k][i] - b.high[l][i], b.low[l][i] - a.high[k][i]});
-  }
+  for (int i = 0; i < 3; ++i) gap[i] = std::max({0.0, low_a[i] - high_b[i], low_b[i] - high_a[i]});
   return gap[0] * gap[0] + gap[1] * gap[1] + gap[2] * gap[2] >=
          contact_distance_m * contact_distance_m;
 }
@@ -182,7 +180,7 @@ struct SelfCollisionQuery::Descent {
   std::vector<PendingPair>& stack;
   const std::vector<ClusterStretch>& stretches;
   std::vector<QuerySphere>& query_spheres;
-  std::vector<LeafBox>& leaf_boxes;
+  std::vector<NodeBox>& node_boxes;
   std::uint64_t query_serial;
   VectorWidth width;
 
@@ -263,8 +261,8 @@ struct SelfCollisionQuery::Descent {
   }
 
   /// The node's sphere from the tree, or, where its cluster's fit is poor (a fold inside the
-  /// cluster: the sphere far wider than at rest), one measured around its points' mean.
-  /// A loose sphere would keep every node of a folded cluster in reach of every other.
+  /// cluster: the sphere far wider than at rest), the one through the corners of its points'
+  /// box. A loose sphere would keep every node of a folded cluster in reach of every other.
   /// Chosen once a query: a descent asks for the same nodes' spheres many times.
   const Sphere& sphere(std::uint32_t node) {
     QuerySphere& chosen = query_spheres[node];
@@ -272,26 +270,20 @@ struct SelfCollisionQuery::Descent {
     return chosen.sphere;
   }
 
-  Sphere chooseSphere(std::uint32_t node) const {
-    const Sphere& fitted = tree.current(node).sphere;
+  Sphere chooseSphere(std::uint32_t node) {
+    const NodeState& state = tree.current(node);
+    const Sphere fitted = state.sphere;
     if (fitted.radius <= kLooseSphere * rest[node].radius + contact_distance_m) return fitted;
-    const Sphere measured = measureSphere(node);
+    const Sphere measured = aroundBox(nodeBox(node));
     return measured.radius < fitted.radius ? measured : fitted;
   }
 
-  Sphere measureSphere(std::uint32_t node) const {
-    const SphereNode& n = tree.node(node);
-    const auto& positions = tree.body().positions();
-    const std::uint32_t* points = tree.pointIndices().data() + n.first_point;
-    Eigen::Vector3d center = Eigen::Vector3d::Zero();
-    for (std::uint32_t s = 0; s < n.point_count; ++s) center += positions[points[s]];
-    center /= n.point_count;
-    double squared_m2 = 0.0;
-    for (std::uint32_t s = 0; s < n.point_count; ++s) {
-      squared_m2 = std::max(squared_m2, (positions[points[s]] - center).squaredNorm());
-    }
-    // The root rounds below the distance it bounds by far less than this margin.
-    const double radius_m = std::sqrt(squared_m2);
+  /// The sphere through the box's corners.
+  static Sphere aroundBox(const NodeBox& box) {
+    const Eigen::Vector3d low(box.low[0], box.low[1], box.low[2]);
+    const Eigen::Vector3d high(box.high[0], box.high[1], box.high[2]);
+    const Eigen::Vector3d center = 0.5 * (low + high);
+    const double radius_m = 0.5 * (high - low).norm();
     return {center, radius_m + kMargin * (radius_m + center.cwiseAbs().maxCoeff())};
   }
 
@@ -302,7 +294,7 @@ struct SelfCollisionQuery::Descent {
   /// Stacks the pair if it may hold a self-contact: in reach now, and apart at rest.
   void push(std::uint32_t a, std::uint32_t b) {
     ++counters.node_pairs_tested;
-    if (a != b && !withinReach(sphere(a), sphere(b), contact_distance_m)) {
+    if (a != b && (!withinReach(sphere(a), sphere(b), contact_distance_m) || knownApart(a, b))) {
       return;
     }
     const AtRest at_rest = atRest(a, b);
@@ -382,29 +374,55 @@ struct SelfCollisionQuery::Descent {
       leaves.y[k] = s.center.y();
       leaves.z[k] = s.center.z();
       leaves.radius[k] = s.radius;
-      const LeafBox& box = leafBox(state.first_leaf + k);
+      const NodeBox& box = nodeBox(leaf);
       leaves.low[k] = box.low;
       leaves.high[k] = box.high;
     }
   }
 
-  /// The box around the current points of the leaf at `ordinal` in leaf order, which must
-  /// be current; measured once a query.
-  const LeafBox& leafBox(std::uint32_t ordinal) {
-    LeafBox& box = leaf_boxes[ordinal];
+  /// Whether both nodes' boxes were measured in this query (folded nodes) and lie the
+  /// contact distance apart. No box is measured for it: that reads all points below.
+  bool knownApart(std::uint32_t a, std::uint32_t b) const {
+    const NodeBox& u = node_boxes[a];
+    const NodeBox& v = node_boxes[b];
+    return u.query == query_serial && v.query == query_serial &&
+           boxesApart(u.low, u.high, v.low, v.high, contact_distance_m);
+  }
+
+  /// The box around the node's current points, measured once a query: a leaf's from its
+  /// points, a node's as its children's together (exactly the box of its points), so that
+  /// a folded branch's points are read once, not once per level.
+  const NodeBox& nodeBox(std::uint32_t node) {
+    NodeBox& box = node_boxes[node];
     if (box.query == query_serial) return box;
+    const NodeState& state = tree.current(node);
+    if (state.isLeaf()) {
+      boxAroundPoints(state, box);
+    } else {
+      box = nodeBox(state.first_child);
+      for (std::uint32_t c = state.first_child + 1; c < state.first_child + state.child_count;
+           ++c) {
+        const NodeBox& child = nodeBox(c);
+        for (int i = 0; i < 3; ++i) {
+          box.low[i] = std::min(box.low[i], child.low[i]);
+          box.high[i] = std::max(box.high[i], child.high[i]);
+        }
+      }
+    }
     box.query = query_serial;
+    return box;
+  }
+
+  void boxAroundPoints(const NodeState& leaf, NodeBox& box) const {
     const SlotPositions& positions = tree.leafPositions();
-    const std::uint32_t first = tree.leafSlotStarts()[ordinal];
-    const std::uint32_t end = tree.leafSlotStarts()[ordinal + 1];
+    const std::uint32_t end = leaf.first_point + leaf.point_count;
     for (int i = 0; i < 3; ++i) {
-      box.low[i] = box.high[i] = positions(i, first);
-      for (std::uint32_t s = first + 1; s < end; ++s) {
+      box.low[i] = box.high[i] = positions(i, leaf.first_point);
+      for (std::uint32_t s = leaf.first_point + 1; s < end; ++s) {
         box.low[i] = std::min(box.low[i], positions(i, s));
         box.high[i] = std::max(box.high[i], positions(i, s));
       }
     }
-    return box;
   }
 
   /// Every leaf of a against every leaf of b (each pair once, and each leaf with itself, if
@@ -417,8 +435,10 @@ struct SelfCollisionQuery::Descent {
     while (pairs != 0) {
       const auto bit = static_cast<std::uint32_t>(__builtin_ctzll(pairs));
       pairs &= pairs - 1;
-      if (boxesApart(a, bit >> 3, b, bit & 7, contact_distance_m)) continue;
-      leafPair(a.node[bit >> 3], b.node[bit & 7]);
+      const std::uint32_t k = bit >> 3;
+      const std::uint32_t l = bit & 7;
+      if (boxesApart(a.low[k], a.high[k], b.low[l], b.high[l], contact_distance_m)) continue;
+      leafPair(a.node[k], b.node[l]);
     }
   }
 
@@ -505,12 +525,10 @@ void SelfCollisionQuery::collide(SphereTree& tree, const RestSpheres& rest, int 
   const bool to_leaves = level < 0 || level >= tree.maxLevel();
   measureStretches(tree.body(), contact_distance_m, rest_distance_m);
   if (query_spheres_.size() < tree.nodeCount()) query_spheres_.resize(tree.nodeCount());
-  if (leaf_boxes_.size() < tree.leafSlotStarts().size()) {
-    leaf_boxes_.resize(tree.leafSlotStarts().size());
-  }
+  if (node_boxes_.size() < tree.nodeCount()) node_boxes_.resize(tree.nodeCount());
   Descent descent{
       tree,     rest,   level,      to_leaves,      contact_distance_m, rest_distance_m, contacts,
-      counters, stack_, stretches_, query_spheres_, leaf_boxes_,        ++query_serial_, width_};
+      counters, stack_, stretches_, query_spheres_, node_boxes_,        ++query_serial_, width_};
   stack_.clear();
   descent.push(0, 0);
   while (!stack_.empty()) {

@@ -93,13 +93,13 @@ class SelfCollisionQuery {
     std::uint64_t query = 0;
   };
   std::vector<QuerySphere> query_spheres_;
-  /// The box around a leaf's current points, by leaf order, measured in query `query`.
-  struct LeafBox {
+  /// The box around a node's current points, measured in query `query`.
+  struct NodeBox {
     double low[3];
     double high[3];
     std::uint64_t query = 0;
   };
-  std::vector<LeafBox> leaf_boxes_;
+  std::vector<NodeBox> node_boxes_;
   std::uint64_t query_serial_ = 0;
   VectorWidth width_;
 };
